@@ -1,0 +1,36 @@
+"""jaxmotion: language-guided human motion generation in 3D scenes, in JAX/Flax.
+
+Importing the package is cheap: no JAX computation is compiled or run at import
+time, and subpackages load on first attribute access
+(``jaxmotion.geometry``, ``jaxmotion.scene``, ...).
+
+Conventions kept by every module: metres and seconds, z-up world with the floor
+at z = 0, the 22 SMPL-X body joints in the standard order
+(:data:`jaxmotion.geometry.JOINT_NAMES`), float32 arrays.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+from jaxmotion._version import __version__
+
+_SUBMODULES = ("config", "geometry", "scene")
+
+__all__ = ["__version__", *_SUBMODULES]
+
+if TYPE_CHECKING:  # pragma: no cover
+    from jaxmotion import config, geometry, scene  # noqa: F401
+
+
+def __getattr__(name: str):
+    if name in _SUBMODULES:
+        module = importlib.import_module(f"jaxmotion.{name}")
+        globals()[name] = module
+        return module
+    raise AttributeError(f"module 'jaxmotion' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(__all__)

@@ -66,8 +66,10 @@ def _min_sq_distance(points, joints, frame_mask, chunk):
     """``[N,3], [T,J,3], [T] -> [N,J]`` squared distances (see module docstring)."""
     n = points.shape[0]
     j_count = joints.shape[1]
-    points = points.astype(jnp.float32)
-    joints = joints.astype(jnp.float32)
+    # float32 by default; float64 inputs stay float64 (for gradient checks under x64).
+    dtype = jnp.promote_types(jnp.promote_types(points.dtype, joints.dtype), jnp.float32)
+    points = points.astype(dtype)
+    joints = joints.astype(dtype)
     if frame_mask is None:
         any_valid = jnp.array(True)
     else:

@@ -12,8 +12,9 @@ accept any joint set.
 Implementation: points are processed in chunks (``lax.map``) and, inside a
 chunk, the squared distance is expanded as ``|p|² − 2 p·q + |q|²`` with the
 frame minimum taken over ``−2 p·q + |q|²`` (three fused multiply-adds and one
-min per point·joint·frame). No ``[T, N, J]`` tensor is ever built: peak memory is
-the output plus one ``[J, T, chunk]`` block. Coordinates are first centred on
+min per point·joint·frame), in a loop over frames that keeps a ``[J, chunk]``
+running minimum. No ``[T, N, J]`` tensor is ever built: peak memory is the
+output plus a few ``[J, chunk]`` blocks. Coordinates are first centred on
 the joints' centroid, which keeps float32 cancellation small: the absolute
 error of ``d`` is below 2e-3 m near zero distance and far smaller elsewhere
 (tested against a float64 brute force).
@@ -45,7 +46,8 @@ AFFORDANCE_JOINTS: tuple[int, ...] = (0, 10, 11, 12, 20, 21)
 #: Gaussian width σ of the affordance map, metres.
 AFFORDANCE_SIGMA = 0.8
 
-_DEFAULT_CHUNK = 2048
+_DEFAULT_CHUNK = 32768
+_UNROLL = 4  # frames per loop iteration; measured best on 2-core AVX-512 CPUs
 
 
 def _check_inputs(points, joints, frame_mask):
@@ -80,21 +82,26 @@ def _min_sq_distance(points, joints, frame_mask, chunk):
     centre = jnp.mean(joints.reshape(-1, 3), axis=0)
     points = points - centre
     joints = joints - centre
-    # Per-chunk layout [J, T, C]: the frame minimum reduces a middle axis with the
-    # point axis contiguous, which XLA vectorises across points.
-    minus2q = (-2.0 * joints).transpose(2, 1, 0)  # [3, J, T]
-    q_sq = jnp.sum(joints * joints, axis=-1).T  # [J, T]
+    minus2q = -2.0 * joints  # [T, J, 3]
+    q_sq = jnp.sum(joints * joints, axis=-1)  # [T, J]
 
     chunk = max(1, min(chunk, n))
     n_pad = -n % chunk
     padded = jnp.pad(points, ((0, n_pad), (0, 0)))
 
     def one_chunk(pc):  # [C, 3] -> [J, C]
-        x, y, z = pc[:, 0], pc[:, 1], pc[:, 2]
-        s = q_sq[..., None] + x * minus2q[0][..., None]
-        s = s + y * minus2q[1][..., None]
-        s = s + z * minus2q[2][..., None]  # [J, T, C]
-        return jnp.min(s, axis=1) + (x * x + y * y + z * z)[None]
+        x, y, z = pc[:, 0][None], pc[:, 1][None], pc[:, 2][None]  # [1, C]
+
+        # A loop over frames with a [J, C] running minimum: each step is one
+        # elementwise fusion vectorised across points, the carry stays in cache.
+        def frame(t, acc):
+            s = q_sq[t][:, None] + x * minus2q[t, :, 0:1]
+            s = s + y * minus2q[t, :, 1:2] + z * minus2q[t, :, 2:3]
+            return jnp.minimum(acc, s)
+
+        init = jnp.full((j_count, pc.shape[0]), jnp.inf, dtype)
+        acc = jax.lax.fori_loop(0, joints.shape[0], frame, init, unroll=_UNROLL)
+        return acc + (x * x + y * y + z * z)
 
     out = jax.lax.map(one_chunk, padded.reshape(-1, chunk, 3))  # [N/C, J, C]
     d2 = out.transpose(0, 2, 1).reshape(-1, j_count)[:n]

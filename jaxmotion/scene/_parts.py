@@ -19,6 +19,17 @@ CYLINDER_SECTIONS = 16
 _EPS = 1e-6
 
 
+# Palettes (rgb in [0, 1]) the furniture builders draw colours from.
+WOOD = ((0.55, 0.38, 0.22), (0.72, 0.55, 0.36), (0.36, 0.24, 0.15), (0.82, 0.70, 0.52))
+LAMINATE = ((0.92, 0.92, 0.90), (0.62, 0.62, 0.64), (0.22, 0.22, 0.24))
+FABRIC = ((0.30, 0.36, 0.56), (0.56, 0.22, 0.22), (0.44, 0.50, 0.40), (0.70, 0.64, 0.54),
+          (0.26, 0.26, 0.30), (0.62, 0.48, 0.30))
+METAL = ((0.72, 0.73, 0.76), (0.16, 0.16, 0.17))
+CERAMIC = ((0.95, 0.95, 0.95), (0.90, 0.90, 0.86))
+BRIGHT = ((0.80, 0.20, 0.20), (0.20, 0.45, 0.75), (0.90, 0.75, 0.20), (0.25, 0.60, 0.35),
+          (0.55, 0.30, 0.60), (0.90, 0.55, 0.25))
+
+
 @dataclasses.dataclass(frozen=True)
 class Part:
     """One solid piece of a room (m).
@@ -47,6 +58,24 @@ def part(x0, x1, y0, y1, z0, z1, rgb, shape="box") -> Part:
     hi = (max(x0, x1), max(y0, y1), max(z0, z1))
     return Part(tuple(map(float, lo)), tuple(map(float, hi)),
                 tuple(float(np.clip(c, 0.0, 1.0)) for c in rgb), shape)
+
+
+def tone(rng, palette, jitter=0.06):
+    """A palette colour with per-instance brightness and tint jitter."""
+    base = np.asarray(palette[rng.integers(len(palette))], float)
+    return np.clip(base * (1.0 + rng.normal(0.0, jitter)) + rng.normal(0.0, jitter / 3, 3), 0, 1)
+
+
+def shade(rgb, f):
+    """rgb scaled by f, clipped to [0, 1]."""
+    return np.clip(np.asarray(rgb) * f, 0.0, 1.0)
+
+
+def leg_set(w, d, h, t, rgb, inset=0.0, round_=False, z0=0.0):
+    """Four legs of side t (m) at the corners of a w x d rectangle, from z0 to h."""
+    xs, ys = (-w / 2 + inset, w / 2 - inset - t), (-d / 2 + inset, d / 2 - inset - t)
+    shape = "cylinder" if round_ else "box"
+    return [part(x, x + t, y, y + t, z0, h, rgb, shape) for x in xs for y in ys]
 
 
 def rot90(k: int) -> np.ndarray:
@@ -164,7 +193,8 @@ def sample_parts(parts, num_points: int, rng: np.random.Generator, *, colour_noi
         u, v = rng.random(m), rng.random(m)
         swap = u + v > 1.0  # fold the unit square onto the triangle
         u, v = np.where(swap, 1 - u, u), np.where(swap, 1 - v, v)
-        xyz = tri[f, 0] + u[:, None] * (tri[f, 1] - tri[f, 0]) + v[:, None] * (tri[f, 2] - tri[f, 0])
+        t0 = tri[f, 0]
+        xyz = t0 + u[:, None] * (tri[f, 1] - t0) + v[:, None] * (tri[f, 2] - t0)
         noise = rng.normal(0.0, colour_noise, (m, 3))
         keep = ~_inside_parts(xyz, owner[f], parts, occluders) if occluders else np.ones(m, bool)
         got.append((xyz[keep], f[keep], noise[keep]))
@@ -183,6 +213,7 @@ def parts_mesh(parts) -> trimesh.Trimesh:
     vertices, so every triangle keeps its part's flat colour)."""
     tri, _, owner = _all_triangles(parts)
     rgb = np.round(np.array([p.rgb for p in parts])[owner] * 255).astype(np.uint8)
-    colours = np.concatenate([np.repeat(rgb, 3, axis=0), np.full((3 * len(tri), 1), 255, np.uint8)], 1)
+    alpha = np.full((3 * len(tri), 1), 255, np.uint8)
+    colours = np.concatenate([np.repeat(rgb, 3, axis=0), alpha], 1)
     faces = np.arange(3 * len(tri)).reshape(-1, 3)
     return trimesh.Trimesh(tri.reshape(-1, 3), faces, vertex_colors=colours, process=False)

@@ -1,0 +1,141 @@
+"""Training crops: a square of the room around the motion, in a local frame.
+
+Per sample (the afford-motion recipe, see REFERENCE_FACTS):
+
+1. take the xy extent of the pelvis trajectory over valid frames, padded by
+   ``margin`` metres;
+2. sample the crop centre ``c`` uniformly such that the padded extent fits in
+   the ``size × size`` square (centred on the extent when it cannot fit);
+3. keep the scene points inside the square and draw ``num_points`` of them
+   (without replacement when there are enough, else all of them plus random
+   duplicates);
+4. recentre: subtract ``(c_x, c_y, z_p)`` where ``z_p`` is the
+   ``z_percentile``-th percentile of the drawn points' z (the floor, robustly);
+5. rotate about z by a random angle in ``[−rotation_range, rotation_range]``.
+
+The same rigid transform is applied to the motion, so
+``x_crop = R (x_world − shift)``. Colours go to [−1, 1].
+
+Host-side numpy; every random choice comes from the ``numpy.random.Generator``
+passed in.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Crop", "CropSpec", "crop_sample", "motion_features", "features_to_joints"]
+
+
+@dataclass(frozen=True)
+class CropSpec:
+    """Crop parameters (mirrors ``configs/data.py``'s ``crop`` section)."""
+
+    size: float = 4.0
+    num_points: int = 8192
+    z_percentile: float = 2.0
+    rotate: bool = True
+    rotation_range: float = float(np.pi)
+    margin: float = 0.3
+
+
+@dataclass(frozen=True)
+class Crop:
+    """One training crop. Shapes: N = num_points, T = frames.
+
+    Attributes:
+      points: ``[N, 3]`` float32, crop frame, metres.
+      colors: ``[N, 3]`` float32 in [−1, 1].
+      target_mask: ``[N]`` bool, points of the target instance.
+      joints: ``[T, 22, 3]`` float32, crop frame.
+      mask: ``[T]`` bool, valid frames.
+      rotation: ``[3, 3]``, shift: ``[3]`` with ``x_crop = rotation @ (x_world − shift)``.
+    """
+
+    points: np.ndarray
+    colors: np.ndarray
+    target_mask: np.ndarray
+    joints: np.ndarray
+    mask: np.ndarray
+    rotation: np.ndarray
+    shift: np.ndarray
+
+    def to_world(self, x: np.ndarray) -> np.ndarray:
+        """Map crop-frame coordinates ``[..., 3]`` back to the world."""
+        return np.asarray(x) @ self.rotation + self.shift
+
+
+def _rot_z(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], np.float32)
+
+
+def crop_sample(
+    rng: np.random.Generator,
+    xyz: np.ndarray,
+    rgb: np.ndarray,
+    instance: np.ndarray,
+    joints: np.ndarray,
+    mask: np.ndarray,
+    target_id: int,
+    spec: CropSpec = CropSpec(),
+) -> Crop:
+    """Crop one sample. See the module docstring for the recipe.
+
+    Args:
+      rng: source of every random choice.
+      xyz ``[P,3]``, rgb ``[P,3]`` in [0,1], instance ``[P]``: the whole room.
+      joints ``[T,22,3]``, mask ``[T]``: the motion in the world frame.
+      target_id: instance id of the target object (its points form ``target_mask``).
+    """
+    mask = np.asarray(mask, bool)
+    if not mask.any():
+        raise ValueError("crop_sample: the motion has no valid frame (mask is all False)")
+    pelvis = joints[mask, 0, :2]
+    lo = pelvis.min(0) - spec.margin
+    hi = pelvis.max(0) + spec.margin
+    half = 0.5 * spec.size
+    c_lo, c_hi = hi - half, lo + half  # centres for which [lo, hi] fits in the square
+    fits = c_lo <= c_hi
+    centre = np.where(fits, rng.uniform(np.minimum(c_lo, c_hi), np.maximum(c_lo, c_hi)), 0.5 * (lo + hi))
+
+    inside = np.all(np.abs(xyz[:, :2] - centre) <= half, axis=1)
+    idx = np.flatnonzero(inside)
+    if len(idx) == 0:
+        raise ValueError(
+            f"crop_sample: no scene point within the {spec.size} m square around the motion "
+            f"(centre {centre.round(2).tolist()}); is the motion in the scene's frame?"
+        )
+    n = spec.num_points
+    if len(idx) >= n:
+        pick = rng.choice(idx, n, replace=False)
+    else:
+        pick = np.concatenate([idx, rng.choice(idx, n - len(idx), replace=True)])
+    pts = xyz[pick].astype(np.float32)
+    z0 = np.percentile(pts[:, 2], spec.z_percentile)
+    shift = np.array([centre[0], centre[1], z0], np.float32)
+    angle = rng.uniform(-spec.rotation_range, spec.rotation_range) if spec.rotate else 0.0
+    rot = _rot_z(angle)
+    return Crop(
+        points=((pts - shift) @ rot.T).astype(np.float32),
+        colors=(2.0 * rgb[pick] - 1.0).astype(np.float32),
+        target_mask=np.asarray(instance[pick] == target_id),
+        joints=((joints - shift) @ rot.T).astype(np.float32),
+        mask=mask,
+        rotation=rot,
+        shift=shift,
+    )
+
+
+def motion_features(joints: np.ndarray) -> np.ndarray:
+    """The models' motion representation: absolute joint positions, ``[..., T, 22, 3] -> [..., T, 66]``."""
+    joints = np.asarray(joints)
+    return joints.reshape(*joints.shape[:-2], 66)
+
+
+def features_to_joints(features: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`motion_features`: ``[..., T, 66] -> [..., T, 22, 3]``."""
+    features = np.asarray(features)
+    return features.reshape(*features.shape[:-1], 22, 3)

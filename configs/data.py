@@ -28,6 +28,8 @@ class CropConfig:
       z_percentile: the crop is shifted so this percentile of point z lands at z = 0.
       rotate: random rotation about z as augmentation.
       rotation_range: the rotation angle is uniform in [-rotation_range, rotation_range], radians.
+      margin: the pelvis trajectory's xy extent is padded by this much before the crop centre
+        is drawn so that it fits, metres.
     """
 
     size: float = 4.0
@@ -35,6 +37,7 @@ class CropConfig:
     z_percentile: float = 2.0
     rotate: bool = True
     rotation_range: float = math.pi
+    margin: float = 0.3
 
     def __post_init__(self):
         if self.size <= 0 or self.num_points < 1:

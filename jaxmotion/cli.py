@@ -58,6 +58,32 @@ def _cmd_scene_convert(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_synth(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from jaxmotion.data.synth import SynthSettings, build_dataset, render_dataset_previews
+
+    out = Path(args.out)
+    if not args.preview_only:
+        settings = SynthSettings(scenes=args.scenes, per_scene=args.per_scene, seed=args.seed,
+                                 points_per_scene=args.points)
+        manifest = build_dataset(out, settings, workers=args.workers, stats=not args.no_stats)
+        print(f"dataset in {out}: samples {manifest['samples']}, scenes {manifest['scenes']}, "
+              f"{manifest['build_seconds_this_run']} s")
+    if args.preview or args.preview_only:
+        paths = render_dataset_previews(out, count=args.preview_count, split=args.preview_split)
+        print(f"previews: {len(paths)} PNG files in {out / 'preview'}")
+    return 0
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from jaxmotion.demo import run_demo
+
+    result = run_demo(args.out, seed=args.seed, action=args.action)
+    print(json.dumps(result, indent=2))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="jaxmotion",
@@ -89,6 +115,40 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("dst", help="output .npz")
     scene_common(q)
     q.set_defaults(func=_cmd_scene_convert)
+
+    p = sub.add_parser(
+        "synth",
+        help="build the synthetic HUMANISE-like dataset (rooms, instructions, motions)",
+        description="Build (or resume, by running the same command again) a synthetic dataset "
+        "in the sample schema: DIR/scenes/*.npz, DIR/samples/{train,val,test}/*.npz, "
+        "DIR/manifest.json, DIR/stats.npz. Deterministic for a seed.",
+    )
+    p.add_argument("--out", required=True, help="dataset folder")
+    p.add_argument("--scenes", type=int, default=100, help="rooms (default 100)")
+    p.add_argument("--per-scene", type=int, default=10, help="instructions per room (default 10)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--workers", type=int, default=1, help="processes (default 1)")
+    p.add_argument("--points", type=int, default=50_000, help="points per room scan")
+    p.add_argument("--no-stats", action="store_true", help="skip the normalisation statistics")
+    p.add_argument("--preview", action="store_true", help="also render PNG previews of samples")
+    p.add_argument("--preview-only", action="store_true",
+                   help="only render previews of an existing dataset in --out")
+    p.add_argument("--preview-count", type=int, default=4, help="samples to preview")
+    p.add_argument("--preview-split", default="train", choices=("train", "val", "test"))
+    p.set_defaults(func=_cmd_synth)
+
+    p = sub.add_parser(
+        "demo",
+        help="the built-in demo: a room, an instruction, a motion and its affordance map",
+        description="Draw a synthetic room, an instruction and a motion performing it; compute "
+        "the motion's affordance map on the room; write the room (PLY), the motion (sample "
+        "schema .npz), the affordance as a coloured point cloud (PLY) and PNG previews to --out.",
+    )
+    p.add_argument("--out", default="out", help="output folder (default: out)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--action", choices=("walk", "sit", "stand_up", "lie"), default=None,
+                   help="action to perform (default: sit)")
+    p.set_defaults(func=_cmd_demo)
     return parser
 
 

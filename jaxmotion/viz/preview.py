@@ -93,7 +93,7 @@ def render_preview(
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title((title + "\n" if title else "") + "top view (start: light, end: dark)", fontsize=9)
+    ax.set_title((title + "\n" if title else "") + "top view (skeleton colour: start purple → end yellow)", fontsize=9)
     path = out_prefix.with_name(out_prefix.name + "_top.png")
     _save(fig, path, dpi)
     plt.close(fig)
@@ -102,21 +102,25 @@ def render_preview(
     # --- perspective view around the motion
     fig = plt.figure(figsize=(8, 6))
     ax = fig.add_subplot(projection="3d")
-    centre = joints[:, 0].mean(0)
-    near = np.all(np.abs(xyz[:, :2] - centre[:2]) < 3.0, axis=1)
+    lo, hi = joints[..., :2].min((0, 1)), joints[..., :2].max((0, 1))
+    centre = 0.5 * (lo + hi)
+    half = max(1.2, 0.5 * float(np.max(hi - lo)) + 0.6)
+    top = 2.2
+    near = np.all(np.abs(xyz[:, :2] - centre) < half, axis=1) & (xyz[:, 2] < top)
     ax.scatter(xyz[near, 0], xyz[near, 1], xyz[near, 2], c=rgb[near], s=0.6, linewidths=0,
                depthshade=False)
-    for f, col in zip(frames, shades):
+    for n, (f, col) in enumerate(zip(frames, shades)):
+        ends = n in (0, len(frames) - 1)  # first and last pose bold, the rest faint
         for j, p in enumerate(PARENTS[1:], start=1):
             seg = joints[f, [p, j]]
-            ax.plot(seg[:, 0], seg[:, 1], seg[:, 2], "-", color=col, lw=2.0)
+            ax.plot(seg[:, 0], seg[:, 1], seg[:, 2], "-", color=col, lw=2.6 if ends else 1.0,
+                    alpha=1.0 if ends else 0.45)
     ax.plot(joints[:, 0, 0], joints[:, 0, 1], joints[:, 0, 2], "-", color="black", lw=0.8)
-    half = 2.5
     ax.set_xlim(centre[0] - half, centre[0] + half)
     ax.set_ylim(centre[1] - half, centre[1] + half)
-    ax.set_zlim(0, 2 * half)
-    ax.set_box_aspect((1, 1, 1))
-    ax.view_init(elev=28, azim=-60)
+    ax.set_zlim(0, top)
+    ax.set_box_aspect((2 * half, 2 * half, top))
+    ax.view_init(elev=25, azim=-60)
     ax.set_title(title, fontsize=9)
     path = out_prefix.with_name(out_prefix.name + "_persp.png")
     _save(fig, path, dpi)

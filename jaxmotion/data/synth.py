@@ -1,0 +1,233 @@
+"""Build the synthetic HUMANISE-like dataset: rooms, instructions and motions.
+
+``jaxmotion synth --out DIR --scenes N --per-scene K --seed S --workers W``
+
+For scene ``i`` a room is drawn from ``SeedSequence([seed, i])``, sampled to a
+ScanNet-like point cloud and saved as ``scenes/<scene_id>.npz``; then ``K``
+(instruction, motion) pairs are drawn, each from ``default_rng([seed, i, k,
+attempt])`` and retried with the next attempt when the kinematic character
+cannot perform it (no path, seat unreachable). The split is **by scene**: a
+seeded permutation of the scene indices gives 80 % train, 10 % val, 10 % test.
+
+Everything is deterministic for a seed (whatever the number of workers), every
+file is written atomically, and a scene counts as done when its scene file and
+all its sample files exist, so an interrupted build resumes where it stopped by
+running the same command again. ``manifest.json`` (counts, seed, settings,
+version) is written at the end; ``stats.npz`` (normalisation statistics of the
+training crops) after it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import multiprocessing as mp
+import time
+from collections import Counter
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from jaxmotion._version import __version__
+from jaxmotion.data.format import DatasetError, load_manifest, save_sample, write_json_atomic
+
+__all__ = [
+    "SynthSettings", "build_dataset", "render_dataset_previews", "scene_id", "split_of_scenes",
+    "write_stats",
+]
+
+FORMAT_VERSION = 1
+_MAX_ATTEMPTS = 30
+
+
+@dataclass(frozen=True)
+class SynthSettings:
+    """What defines a synthetic dataset (two builds with equal settings are identical)."""
+
+    scenes: int
+    per_scene: int
+    seed: int = 0
+    points_per_scene: int = 50_000
+    train_fraction: float = 0.8
+    val_fraction: float = 0.1
+
+
+def scene_id(i: int) -> str:
+    return f"scene_{i:05d}"
+
+
+def split_of_scenes(n: int, seed: int, train_fraction=0.8, val_fraction=0.1) -> list[str]:
+    """Split label per scene index: a seeded permutation cut into train / val / test.
+
+    With 3 or more scenes every split gets at least one.
+    """
+    order = np.random.default_rng([seed, 0x5B117]).permutation(n)
+    n_val = int(round(val_fraction * n))
+    n_test = n - int(round(train_fraction * n)) - n_val
+    if n >= 3:
+        n_val, n_test = max(n_val, 1), max(n_test, 1)
+    n_train = n - n_val - n_test
+    labels = [""] * n
+    for rank, i in enumerate(order):
+        labels[i] = "train" if rank < n_train else "val" if rank < n_train + n_val else "test"
+    return labels
+
+
+def _sample_paths(root: Path, split: str, sid: str, k: int) -> list[Path]:
+    return [root / "samples" / split / f"{sid}_{j:02d}.npz" for j in range(k)]
+
+
+def _scene_done(root: Path, split: str, sid: str, k: int) -> bool:
+    return (root / "scenes" / f"{sid}.npz").is_file() and all(
+        p.is_file() for p in _sample_paths(root, split, sid, k)
+    )
+
+
+def _build_scene(job) -> dict:
+    """Worker: one room and its K samples. Returns per-scene counts."""
+    from jaxmotion.motion import MotionError, synthesize
+    from jaxmotion.scene import save_scene
+    from jaxmotion.scene.instructions import NoUniqueReference, sample_task
+    from jaxmotion.scene.rooms import room_to_scene, sample_room
+
+    root, split, i, s = job
+    root, s = Path(root), SynthSettings(**s)
+    sid = scene_id(i)
+    if _scene_done(root, split, sid, s.per_scene):
+        return {"scene": sid, "skipped": True, "actions": {}, "failures": 0}
+    room = sample_room(np.random.default_rng(np.random.SeedSequence([s.seed, i])))
+    scene_path = root / "scenes" / f"{sid}.npz"
+    if not scene_path.is_file():
+        scene = room_to_scene(room, s.points_per_scene, np.random.default_rng([s.seed, i, 1 << 20]))
+        save_scene(dataclasses.replace(scene, name=sid), scene_path)
+    actions, failures = Counter(), 0
+    for k, path in enumerate(_sample_paths(root, split, sid, s.per_scene)):
+        if path.is_file():
+            continue
+        for attempt in range(_MAX_ATTEMPTS):
+            rng = np.random.default_rng([s.seed, i, k, attempt])
+            try:
+                text, info = sample_task(room, rng)
+                m = synthesize(info["action"], room.floor_rects, room.objects, info["target_id"], rng)
+            except (MotionError, NoUniqueReference):
+                failures += 1
+                continue
+            break
+        else:
+            raise RuntimeError(f"{sid}: no motion could be made for sample {k} in {_MAX_ATTEMPTS} tries")
+        t = m.joints.shape[0]
+        save_sample(path, dict(
+            text=text, action=info["action"], scene_id=sid, target_id=info["target_id"],
+            joints=m.joints, fps=float(m.fps), mask=np.ones(t, bool), transl=m.transl,
+            global_orient=m.global_orient, body_pose=m.body_pose, betas=m.betas,
+        ))  # fmt: skip
+        actions[info["action"]] += 1
+    return {"scene": sid, "skipped": False, "actions": dict(actions), "failures": failures}
+
+
+def _check_existing(root: Path, settings: SynthSettings):
+    if not (root / "manifest.json").is_file():
+        partial = root / ".synth_settings.json"
+        if partial.is_file():
+            old = json.loads(partial.read_text())
+            if old != asdict(settings):
+                raise DatasetError(
+                    f"{root} holds an unfinished build with other settings ({old}); "
+                    "use the same settings to resume, or another --out"
+                )
+        return
+    old = load_manifest(root).get("settings")
+    if old != asdict(settings):
+        raise DatasetError(
+            f"{root} already holds a dataset built with {old}; choose another --out or the same settings"
+        )
+
+
+def build_dataset(out, settings: SynthSettings, *, workers: int = 1, progress: bool = True,
+                  stats: bool = True) -> dict:
+    """Build (or resume) a dataset in ``out``; returns the manifest dict."""
+    from tqdm.auto import tqdm
+
+    if settings.scenes < 1 or settings.per_scene < 1:
+        raise ValueError("--scenes and --per-scene must be at least 1")
+    root = Path(out)
+    (root / "scenes").mkdir(parents=True, exist_ok=True)
+    _check_existing(root, settings)
+    write_json_atomic(root / ".synth_settings.json", asdict(settings))
+    splits = split_of_scenes(settings.scenes, settings.seed, settings.train_fraction,
+                             settings.val_fraction)
+    jobs = [(str(root), splits[i], i, asdict(settings)) for i in range(settings.scenes)]
+    t0 = time.perf_counter()
+    results = []
+    bar = tqdm(total=len(jobs), desc="synth scenes", unit="scene", disable=not progress)
+    try:
+        if workers <= 1:
+            for job in jobs:
+                results.append(_build_scene(job))
+                bar.update()
+        else:
+            # spawn: safe with JAX and threads in the parent
+            with mp.get_context("spawn").Pool(workers) as pool:
+                for r in pool.imap_unordered(_build_scene, jobs, chunksize=1):
+                    results.append(r)
+                    bar.update()
+    finally:
+        bar.close()
+    elapsed = time.perf_counter() - t0
+    counts = {sp: len(list((root / "samples" / sp).glob("*.npz"))) for sp in ("train", "val", "test")}
+    actions = Counter()
+    for r in results:
+        actions.update(r["actions"])
+    manifest = {
+        "format_version": FORMAT_VERSION,
+        "jaxmotion_version": __version__,
+        "kind": "synthetic (jaxmotion built-in world; not HUMANISE)",
+        "settings": asdict(settings),
+        "seed": settings.seed,
+        "scenes": {sp: splits.count(sp) for sp in ("train", "val", "test")},
+        "samples": counts,
+        "actions_built_this_run": dict(actions),
+        "retries_this_run": int(sum(r["failures"] for r in results)),
+        "build_seconds_this_run": round(elapsed, 1),
+        "fps": 30,
+    }
+    write_json_atomic(root / "manifest.json", manifest)
+    (root / ".synth_settings.json").unlink(missing_ok=True)
+    if stats:
+        write_stats(root)
+    return manifest
+
+
+def write_stats(root, *, num_batches: int = 16, batch_size: int = 32, seed: int = 0):
+    """Compute and save ``stats.npz`` from random training crops (default crop settings)."""
+    from jaxmotion.data.crop import CropSpec
+    from jaxmotion.data.loader import Dataset, compute_stats, save_stats
+
+    ds = Dataset(root, "train", CropSpec())
+    st = compute_stats(ds, num_batches=num_batches, batch_size=min(batch_size, len(ds)), seed=seed)
+    return save_stats(st, Path(root) / "stats.npz")
+
+
+def render_dataset_previews(root, *, count: int = 4, split: str = "train") -> list[Path]:
+    """Render top and perspective PNGs of the first ``count`` samples of a split.
+
+    Files: ``DIR/preview/<sample_id>_top.png`` and ``..._persp.png``.
+    """
+    from jaxmotion.data.format import load_sample
+    from jaxmotion.scene import load_scene
+    from jaxmotion.viz import render_preview
+
+    root = Path(root)
+    files = sorted((root / "samples" / split).glob("*.npz"))[:count]
+    if not files:
+        raise DatasetError(f"{root / 'samples' / split}: no samples to preview")
+    paths = []
+    for f in files:
+        s = load_sample(f)
+        scene = load_scene(root / "scenes" / f"{s['scene_id']}.npz")
+        paths += render_preview(
+            scene.xyz, scene.rgb, s["joints"], root / "preview" / f.stem, mask=s["mask"],
+            target_mask=scene.instance == s["target_id"], title=f"{s['text']}  [{s['action']}]",
+        )
+    return paths

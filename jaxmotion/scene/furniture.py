@@ -61,11 +61,6 @@ class Model:
         """Box maximum corner [3] (m)."""
         return bounds(self.parts)[1]
 
-    @property
-    def size(self) -> np.ndarray:
-        """Box extents [3] (m)."""
-        return self.hi - self.lo
-
 
 def _model(category, parts, surface=None, fronts=((0.0, 1.0),)):
     lo, hi = bounds(parts)
@@ -135,7 +130,7 @@ def bed(rng):
     headboard 0.85-1.20 m high at local -y; sit on either long side (+-x)."""
     double = rng.random() < 0.5
     w = rng.uniform(1.40, 1.80) if double else rng.uniform(0.90, 1.05)
-    length, top, mattress = rng.uniform(1.95, 2.15), rng.uniform(0.45, 0.60), rng.uniform(0.18, 0.28)
+    length, top, mattress = rng.uniform(1.95, 2.15), rng.uniform(0.45, 0.6), rng.uniform(0.18, 0.28)
     ht, hh = rng.uniform(0.04, 0.08), rng.uniform(0.85, 1.20)
     wood, linen = tone(rng, WOOD + LAMINATE[2:]), tone(rng, CERAMIC + FABRIC[3:4], 0.03)
     legs = rng.uniform(0.08, 0.15) if rng.random() < 0.4 else 0.0
@@ -164,8 +159,8 @@ def table(rng):
         w, d = rng.uniform(1.2, 2.0), rng.uniform(0.75, 1.0)
     else:
         w = d = rng.uniform(0.8, 1.2)
-    wood = tone(rng, WOOD + LAMINATE)
-    parts = [part(-w / 2, w / 2, -d / 2, d / 2, h - t, h, wood, "cylinder" if style == 2 else "box")]
+    wood, top_shape = tone(rng, WOOD + LAMINATE), "cylinder" if style == 2 else "box"
+    parts = [part(-w / 2, w / 2, -d / 2, d / 2, h - t, h, wood, top_shape)]
     if style == 2 and rng.random() < 0.5:  # pedestal
         parts += [part(-0.05, 0.05, -0.05, 0.05, 0.03, h - t, wood, "cylinder"),
                   part(-0.25, 0.25, -0.25, 0.25, 0.0, 0.03, shade(wood, 0.8), "cylinder")]
@@ -317,8 +312,9 @@ def window(rng, wall_height=2.5):
              part(w / 2 - ft, w / 2, 0, fd, sill, top, frame),
              part(-w / 2 + ft, w / 2 - ft, 0, fd, sill, sill + ft, frame),
              part(-w / 2 + ft, w / 2 - ft, 0, fd, top - ft, top, frame),
-             part(-w / 2 + ft, w / 2 - ft, 0.015, 0.025, sill + ft, top - ft, glass),
-             part(-w / 2 - 0.04, w / 2 + 0.04, 0, rng.uniform(0.08, 0.15), sill - 0.03, sill, frame)]
+             part(-w / 2 + ft, w / 2 - ft, 0.0, 0.025, sill + ft, top - ft, glass),
+             part(-w / 2 - 0.04, w / 2 + 0.04, 0, rng.uniform(0.08, 0.15), sill - 0.03, sill,
+                  frame)]
     if rng.random() < 0.5:  # a mullion splits the pane
         parts.append(part(-ft / 2, ft / 2, 0.025, fd, sill + ft, top - ft, frame))
     return _model("window", parts)
@@ -351,14 +347,14 @@ def fridge(rng):
     parts = [part(-w / 2, w / 2, -d / 2, d / 2, 0.0, h, col)]
     for z0, z1 in ((0.02, split - 0.005), (split + 0.005, h - 0.01)):
         zc, half = 0.5 * (z0 + z1), min(0.3, 0.35 * (z1 - z0))
-        parts += [part(-w / 2 + 0.005, w / 2 - 0.005, d / 2, d / 2 + 0.02, z0, z1, shade(col, 1.03)),
+        parts += [part(-w / 2 + 0.005, w / 2 - 0.005, d / 2, d / 2 + 0.02, z0, z1, shade(col, 1.0)),
                   part(w / 2 - 0.08, w / 2 - 0.05, d / 2 + 0.02, d / 2 + 0.05, zc - half, zc + half,
                        METAL[1])]
     return _model("fridge", parts)
 
 
 def lamp(rng):
-    """Table lamp 0.35-0.60 m high: base, stem and a shade 0.20-0.32 m across; no front."""
+    """Table lamp 0.31-0.56 m high: base, stem and a shade 0.20-0.32 m across; no front."""
     r, base = rng.uniform(0.10, 0.16), tone(rng, METAL + CERAMIC + BRIGHT)
     sh, stem = rng.uniform(0.15, 0.25), rng.uniform(0.18, 0.33)
     parts = [part(-0.07, 0.07, -0.07, 0.07, 0.0, 0.03, base, "cylinder"),

@@ -164,7 +164,7 @@ def sample_instruction(room, action: str, target_id: int, rng, *, graph=None,
     if prefix == "go ahead and " and verb.startswith("go "):
         prefix = ""  # not "go ahead and go to"
     text = prefix + f"{verb} {expr}"
-    if rng.random() < 0.5:
+    if rng.random() < 0.5 or text.startswith("i "):  # "I want you to", never "i want"
         text = text[0].upper() + text[1:]
     text += "." if rng.random() < 0.5 else ""
     info = dict(action=action, target_id=int(target_id), target_class=cat, relation=rel,

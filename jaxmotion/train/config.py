@@ -1,0 +1,95 @@
+"""Config dataclasses shared by every training config (``configs/<name>.py``).
+
+A training config is a frozen dataclass derived from :class:`TrainConfig` with
+its own ``model`` section. These top-level keys are used by external scripts and
+must keep working as command-line overrides: ``preset=tiny``, ``data_dir=DIR``,
+``workdir=DIR``, ``steps=N``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Literal
+
+from jaxmotion.data.config import AffordanceConfig, CropConfig
+
+__all__ = ["DiffusionConfig", "OptimConfig", "TrainConfig"]
+
+
+@dataclasses.dataclass(frozen=True)
+class OptimConfig:
+    """AdamW with warm-up, optional cosine decay, clipping and EMA.
+
+    Attributes:
+      lr: peak learning rate; warmup_steps: linear warm-up from 0.
+      cosine: decay to ``lr * final_lr_fraction`` by the last step (else constant).
+      clip_norm: global gradient-norm clip; weight_decay: AdamW decoupled decay.
+      ema_decay: EMA of the weights used for validation and sampling (0: off).
+    """
+
+    lr: float = 1e-4
+    warmup_steps: int = 200
+    cosine: bool = False
+    final_lr_fraction: float = 0.1
+    clip_norm: float = 1.0
+    weight_decay: float = 0.0
+    b1: float = 0.9
+    b2: float = 0.999
+    ema_decay: float = 0.999
+
+    def __post_init__(self):
+        if self.lr <= 0 or self.clip_norm <= 0:
+            raise ValueError(f"need lr > 0 and clip_norm > 0, got {self.lr}, {self.clip_norm}")
+        if not 0.0 <= self.ema_decay < 1.0:
+            raise ValueError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
+
+
+@dataclasses.dataclass(frozen=True)
+class DiffusionConfig:
+    """Diffusion settings: schedule, number of steps, condition dropout."""
+
+    schedule: Literal["cosine", "linear"] = "cosine"
+    steps: int = 1000
+    cond_drop_prob: float = 0.1
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    """Everything a training run needs except the model section (added by each config).
+
+    Attributes:
+      task: which model family trains (selects the task in ``jaxmotion.train.tasks``).
+      data_dir: a dataset made by ``jaxmotion synth``; workdir: where checkpoints and logs go.
+      steps: total optimiser steps; batch_size: global batch (a multiple of the device count).
+      resume: continue from the last checkpoint in ``workdir`` when there is one.
+      log_every / eval_every / ckpt_every: intervals in steps (eval_every 0: no validation).
+      eval_batches: validation batches (fixed crops) per evaluation.
+      max_frames: motions are padded to this many frames (with a frame mask).
+      max_samples: use only the first N training samples (None: all).
+      crop / affordance: the training crops and affordance maps (see jaxmotion.data.config).
+    """
+
+    task: str = ""
+    data_dir: str = "data/synth"
+    workdir: str = "runs/default"
+    steps: int = 10_000
+    batch_size: int = 32
+    seed: int = 0
+    resume: bool = True
+    log_every: int = 50
+    eval_every: int = 500
+    eval_batches: int = 4
+    ckpt_every: int = 1000
+    keep_checkpoints: int = 3
+    progress: bool = True
+    max_frames: int = 120
+    max_samples: int | None = None
+    crop: CropConfig = dataclasses.field(default_factory=CropConfig)
+    affordance: AffordanceConfig = dataclasses.field(default_factory=AffordanceConfig)
+    optim: OptimConfig = dataclasses.field(default_factory=OptimConfig)
+
+    def __post_init__(self):
+        if self.steps < 1 or self.batch_size < 1:
+            raise ValueError(f"steps ({self.steps}) and batch_size ({self.batch_size}) must be >= 1")
+        if self.log_every < 1 or self.ckpt_every < 1 or self.eval_every < 0:
+            raise ValueError("log_every and ckpt_every must be >= 1 and eval_every >= 0")

@@ -16,12 +16,14 @@ from typing import TYPE_CHECKING
 
 from jaxmotion._version import __version__
 
-_SUBMODULES = ("config", "geometry", "scene")
+_SUBMODULES = (
+    "config", "data", "diffusion", "geometry", "models", "motion", "scene", "text", "train", "viz",
+)
 
 __all__ = ["__version__", *_SUBMODULES]
 
 if TYPE_CHECKING:  # pragma: no cover
-    from jaxmotion import config, geometry, scene  # noqa: F401
+    from jaxmotion import config, data, geometry, motion, scene, text, train, viz  # noqa: F401
 
 
 def __getattr__(name: str):

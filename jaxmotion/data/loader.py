@@ -9,6 +9,7 @@ key                   shape / dtype        meaning
 ``points``            [B, N, 3] float32    crop-frame xyz, metres
 ``colors``            [B, N, 3] float32    rgb in [−1, 1]
 ``target_mask``       [B, N] bool          points of the target instance
+``semantic``          [B, N] int32         semantic class id per point (−1: none)
 ``affordance``        [B, N, 6] float32    ground-truth map ``exp(−d²/2σ²)``
 ``joints``            [B, T, 22, 3]        crop-frame joints (zeros past the end)
 ``motion``            [B, T, 66] float32   the same as features
@@ -42,7 +43,7 @@ __all__ = ["Dataset", "Stats", "compute_stats", "load_stats", "save_stats"]
 
 
 class _SceneCache:
-    """LRU cache of the arrays a crop needs (xyz, rgb, instance) per scene id."""
+    """LRU cache of the arrays a crop needs (xyz, rgb, instance, semantic) per scene id."""
 
     def __init__(self, scene_dir: Path, capacity: int):
         self.scene_dir, self.capacity = scene_dir, capacity
@@ -58,7 +59,8 @@ class _SceneCache:
         if not path.is_file():
             raise DatasetError(f"{path}: scene file missing (referenced by a sample)")
         with np.load(path, allow_pickle=False) as d:
-            item = (d["xyz"].astype(np.float32), d["rgb"].astype(np.float32), d["instance"])
+            item = (d["xyz"].astype(np.float32), d["rgb"].astype(np.float32), d["instance"],
+                    d["semantic"].astype(np.int32))
         with self._lock:
             self._items[scene_id] = item
             while len(self._items) > self.capacity:
@@ -113,13 +115,14 @@ class Dataset:
         t = s["joints"].shape[0]
         if t > self.max_frames:
             raise DatasetError(f"{self.files[i]}: {t} frames > max_frames={self.max_frames}")
-        xyz, rgb, inst = self._scenes.get(s["scene_id"])
+        xyz, rgb, inst, sem = self._scenes.get(s["scene_id"])
         c = crop_sample(rng, xyz, rgb, inst, s["joints"], s["mask"], s["target_id"], self.spec)
         joints = np.zeros((self.max_frames, 22, 3), np.float32)
         joints[:t] = c.joints
         mask = np.zeros(self.max_frames, bool)
         mask[:t] = c.mask
         return dict(points=c.points, colors=c.colors, target_mask=c.target_mask, joints=joints,
+                    semantic=sem[c.indices],
                     mask=mask, action=np.int32(ACTIONS.index(s["action"])), text=s["text"])
 
     def batch(self, indices, rng: np.random.Generator) -> dict:

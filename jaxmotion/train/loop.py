@@ -38,6 +38,7 @@ from jax.sharding import PartitionSpec as P
 
 from jaxmotion.config import config_to_dict, save_config_json
 from jaxmotion.train.checkpoint import Checkpointer
+from jaxmotion.train.export import save_weights
 from jaxmotion.train.metrics import MetricsWriter
 
 __all__ = ["Task", "TrainResult", "make_optimizer", "train"]
@@ -165,8 +166,9 @@ def train(cfg, task: Task, *, on_step: Callable[[int, dict], None] | None = None
     replicated = NamedSharding(mesh, P())
 
     model = task.build_model(cfg, nnx.Rngs(cfg.seed))
+    trainable = getattr(task, "trainable", nnx.Param)  # frozen sub-networks stay in `rest`
     graphdef, params, batch_stats, rng_state, rest = nnx.split(
-        model, nnx.Param, nnx.BatchStat, nnx.RngState, ...)
+        model, trainable, nnx.BatchStat, nnx.RngState, ...)
     tx = make_optimizer(cfg.optim, cfg.steps)
     state = {
         "params": params,
@@ -248,6 +250,10 @@ def train(cfg, task: Task, *, on_step: Callable[[int, dict], None] | None = None
                     writer.write(done, {"val_loss": val_loss})
             if done % cfg.ckpt_every == 0 or done == cfg.steps:
                 ckpt.save(done, state)
+                if jax.process_index() == 0:
+                    save_weights(workdir / "model.safetensors",
+                                 state["ema"] if decay > 0 else state["params"],
+                                 state["batch_stats"], {**config_to_dict(cfg), "step": done})
             if on_step is not None:
                 on_step(done, m)
             bar.update()
@@ -266,7 +272,7 @@ def load_trained(workdir, task: Task, cfg, *, ema: bool = True, step: int | None
     """Rebuild a trained model from ``workdir`` (EMA weights by default)."""
     model = task.build_model(cfg, nnx.Rngs(cfg.seed))
     graphdef, params, batch_stats, rng_state, rest = nnx.split(
-        model, nnx.Param, nnx.BatchStat, nnx.RngState, ...)
+        model, getattr(task, "trainable", nnx.Param), nnx.BatchStat, nnx.RngState, ...)
     tx = make_optimizer(cfg.optim, cfg.steps)
     target = {"params": params, "batch_stats": batch_stats, "opt_state": tx.init(params),
               "ema": params, "step": jnp.zeros((), jnp.int32)}

@@ -70,9 +70,23 @@ def _is_cfg_type(tp: Any) -> bool:
 
 
 def _hints(cls: type) -> dict[str, Any]:
-    """Resolved field annotations of a dataclass, also for privately loaded config files."""
-    globalns = None if cls.__module__ in sys.modules else _MODULE_GLOBALS.get(cls.__module__)
-    return typing.get_type_hints(cls, globalns=globalns)
+    """Resolved field annotations of a dataclass, also for privately loaded config files.
+
+    Each class in the MRO resolves its own annotations in its own module's namespace, so a
+    config class in a privately loaded file can derive from a class of another module.
+    """
+    hints: dict[str, Any] = {}
+    for base in reversed(cls.__mro__):
+        own = base.__dict__.get("__annotations__")
+        if base is object or not own:
+            continue
+        mod = sys.modules.get(base.__module__)
+        globalns = dict(vars(mod)) if mod is not None else dict(
+            _MODULE_GLOBALS.get(base.__module__, {}))
+        # A bare stand-in class carrying only this base's own annotations.
+        stand_in = type("_Annotations", (), {"__annotations__": dict(own)})
+        hints.update(typing.get_type_hints(stand_in, globalns=globalns, localns=dict(vars(base))))
+    return hints
 
 
 def _fields(obj: Any) -> dict[str, dataclasses.Field]:

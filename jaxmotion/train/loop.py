@@ -179,23 +179,28 @@ def train(cfg, task: Task, *, on_step: Callable[[int, dict], None] | None = None
     }
     state = jax.device_put(state, replicated)
     rng_state = jax.device_put(rng_state, replicated)
+    rest = jax.device_put(rest, replicated)
     if resume_step is not None:
         state = ckpt.restore(state, resume_step)
     start = int(state["step"])
     decay = float(cfg.optim.ema_decay)
     base_key = jax.random.key(cfg.seed)
 
-    def loss_fn(params, batch_stats, rngs, batch, key, train):
+    def loss_fn(params, batch_stats, rngs, frozen, batch, key, train):
         # rngs (dropout streams) are traced inputs, reseeded from the step key: never saved.
-        m = nnx.merge(graphdef, params, batch_stats, _fresh_rngs(rngs, key), rest)
+        # `frozen` (non-trainable sub-networks) is an argument, not a closure: no huge constants.
+        # Rebuild the (non-differentiated) BatchStat variables inside this trace so that
+        # BatchNorm may update them here.
+        batch_stats = jax.tree.map(lambda x: x, batch_stats)
+        m = nnx.merge(graphdef, params, batch_stats, _fresh_rngs(rngs, key), frozen)
         loss, aux = task.loss(m, batch, key, train=train)
         new_stats = nnx.state(m, nnx.BatchStat)
         return loss, (aux, new_stats)
 
     @jax.jit
-    def train_step(state, rngs, batch, key):
+    def train_step(state, rngs, frozen, batch, key):
         (loss, (aux, stats)), grads = jax.value_and_grad(loss_fn, has_aux=True)(
-            state["params"], state["batch_stats"], rngs, batch, key, True)
+            state["params"], state["batch_stats"], rngs, frozen, batch, key, True)
         updates, opt_state = tx.update(grads, state["opt_state"], state["params"])
         params = optax.apply_updates(state["params"], updates)
         # EMA with warm-up (min(decay, (1+t)/(10+t))) so early EMA weights are not stuck at init.
@@ -208,9 +213,9 @@ def train(cfg, task: Task, *, on_step: Callable[[int, dict], None] | None = None
         return new, {"loss": loss, "grad_norm": optax.tree.norm(grads), **aux}
 
     @jax.jit
-    def eval_step(state, rngs, batch, key):
+    def eval_step(state, rngs, frozen, batch, key):
         params = state["ema"] if decay > 0 else state["params"]
-        loss, (aux, _) = loss_fn(params, state["batch_stats"], rngs, batch, key, False)
+        loss, (aux, _) = loss_fn(params, state["batch_stats"], rngs, frozen, batch, key, False)
         return {"loss": loss, **aux}
 
     val = task.val_batches(cfg) if cfg.eval_every > 0 else []
@@ -225,7 +230,7 @@ def train(cfg, task: Task, *, on_step: Callable[[int, dict], None] | None = None
     try:
         for step in range(start, cfg.steps):
             batch = _put_batch(next(batches), batch_sharding, n_dev)
-            state, m = train_step(state, rng_state, batch, jax.random.fold_in(base_key, step))
+            state, m = train_step(state, rng_state, rest, batch, jax.random.fold_in(base_key, step))
             m = {k: float(v) for k, v in jax.device_get(m).items()}
             _check_finite(step + 1, m)
             last_loss = m["loss"]
@@ -242,7 +247,7 @@ def train(cfg, task: Task, *, on_step: Callable[[int, dict], None] | None = None
                     writer.write(done, logged)
                 bar.set_postfix(loss=f"{logged['loss']:.4f}", sps=f"{logged['steps_per_s']:.2f}")
             if val and (done % cfg.eval_every == 0 or done == cfg.steps):
-                vals = [jax.device_get(eval_step(state, rng_state, _put_batch(b, batch_sharding, n_dev),
+                vals = [jax.device_get(eval_step(state, rng_state, rest, _put_batch(b, batch_sharding, n_dev),
                                                  jax.random.fold_in(base_key, 2**31 - 1 - i)))
                         for i, b in enumerate(val)]
                 val_loss = float(np.mean([v["loss"] for v in vals]))

@@ -1,0 +1,43 @@
+"""ADM: the affordance diffusion model (Perceiver; variants by model.arch=mlp|point_transformer).
+
+Needs the pretrained backbone (configs/segmentation.py) as ``backbone_workdir``.
+
+    python -m jaxmotion.train --config configs/adm.py data_dir=data/synth workdir=runs/adm \
+        backbone_workdir=runs/segmentation [preset=tiny|default|paper] [key=value ...]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from jaxmotion.models.configs import ADMConfig, preset_overrides
+from jaxmotion.train.config import DiffusionConfig, TrainConfig
+
+
+@dataclasses.dataclass(frozen=True)
+class ADMTrainConfig(TrainConfig):
+    task: str = "adm"
+    workdir: str = "runs/adm"
+    backbone_workdir: str = "runs/segmentation"
+    steps: int = 6000
+    batch_size: int = 16
+    model: ADMConfig = dataclasses.field(default_factory=ADMConfig)
+    diffusion: DiffusionConfig = dataclasses.field(
+        default_factory=lambda: DiffusionConfig(schedule="cosine", steps=500, cond_drop_prob=0.1))
+
+
+PRESETS: dict[str, dict[str, Any]] = {
+    "default": {"crop.num_points": 2048, "optim.lr": 2e-4, "optim.warmup_steps": 200},
+    "tiny": {**preset_overrides(ADMConfig, "tiny", "model."),
+             "crop.num_points": 256, "batch_size": 4, "steps": 20, "log_every": 5,
+             "eval_every": 10, "eval_batches": 1, "ckpt_every": 10, "diffusion.steps": 50,
+             "optim.lr": 1e-3, "optim.warmup_steps": 2, "progress": False},
+    "paper": {**preset_overrides(ADMConfig, "paper", "model."),
+              "crop.num_points": 8192, "batch_size": 32, "steps": 100_000, "optim.lr": 1e-4,
+              "optim.ema_decay": 0.0},
+}
+
+
+def get_config() -> ADMTrainConfig:
+    return ADMTrainConfig()

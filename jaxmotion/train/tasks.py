@@ -1,0 +1,290 @@
+"""What each training config trains: the backbone, ADM and AMDM of the affordance pipeline.
+
+A task builds its model, turns dataset batches (:class:`jaxmotion.data.Dataset`)
+into model inputs, and computes the loss inside the jitted step:
+
+- ``segmentation``: the Point Transformer backbone on the rooms' semantic labels
+  (cross-entropy); its ``model.safetensors`` is ADM's frozen feature extractor.
+- ``adm``: the affordance diffusion model; x0-prediction loss on the z-scored
+  ground-truth affordance map, conditioned on the text embedding and the frozen
+  backbone's per-point features (text dropped with ``cond_drop_prob``).
+- ``amdm``: the affordance-to-motion diffusion model (and the one-stage baseline
+  with ``model.scene_input=rgb``); masked x0 loss on the z-scored motion features,
+  conditioned on text and the affordance map, each dropped independently. With
+  ``predicted_fraction > 0`` and a trained ADM (``adm_workdir``), that fraction of
+  each batch uses an ADM-sampled map (DDIM, ``adm_sampler_steps``) instead of the
+  ground truth, as the paper mixes them 50/50.
+
+Text embeddings come from the frozen MiniLM encoder with an on-disk cache, and
+normalisation statistics from the dataset's ``stats.npz``.
+"""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import nnx
+
+from jaxmotion.config import config_from_dict, config_to_dict
+from jaxmotion.data.crop import CropSpec
+from jaxmotion.data.format import DatasetError
+from jaxmotion.data.loader import Dataset, Stats, compute_stats, load_stats, save_stats
+
+__all__ = ["TASKS", "ADMTask", "AMDMTask", "SegmentationTask", "get_task"]
+
+
+def _crop_spec(cfg) -> CropSpec:
+    return CropSpec(**config_to_dict(cfg.crop))
+
+
+def _dataset(cfg, split: str) -> Dataset:
+    return Dataset(cfg.data_dir, split, _crop_spec(cfg), max_frames=cfg.max_frames,
+                   sigma=cfg.affordance.sigma,
+                   max_samples=cfg.max_samples if split == "train" else None)
+
+
+def _stats(cfg) -> Stats:
+    path = Path(cfg.data_dir) / "stats.npz"
+    if path.is_file():
+        return load_stats(path)
+    st = compute_stats(_dataset(cfg, "train"), num_batches=8, batch_size=8, seed=cfg.seed)
+    try:
+        save_stats(st, path)
+    except OSError:
+        pass  # read-only dataset: recomputed next time
+    return st
+
+
+class _DataTask:
+    """Shared data plumbing: seeded train iterator, fixed validation batches, text embeddings."""
+
+    needs_text = True
+
+    def _text(self, cfg):
+        if not hasattr(self, "_encoder"):
+            from jaxmotion.text import EmbeddingCache, load_text_encoder
+
+            self._encoder = load_text_encoder("minilm")
+            cache_dir = Path(cfg.data_dir) / ".cache" / "text"
+            try:
+                cache_dir.mkdir(parents=True, exist_ok=True)
+            except OSError:
+                cache_dir = Path(cfg.workdir) / "text_cache"
+            self._cache = EmbeddingCache(cache_dir)
+        return self._encoder, self._cache
+
+    def _prepare(self, cfg, raw: dict) -> dict:
+        out = {k: v for k, v in raw.items() if isinstance(v, np.ndarray)}
+        if self.needs_text:
+            encoder, cache = self._text(cfg)
+            out["text_emb"] = np.asarray(cache.encode(encoder, raw["text"]), np.float32)
+        return out
+
+    def train_batches(self, cfg, start_step: int):
+        ds = _dataset(cfg, "train")
+        return (self._prepare(cfg, b) for b in ds.iterate(cfg.batch_size, cfg.seed,
+                                                          start_step=start_step))
+
+    def val_batches(self, cfg) -> list[dict]:
+        try:
+            ds = _dataset(cfg, "val")
+        except DatasetError:
+            return []
+        bs = min(cfg.batch_size, len(ds))
+        bs -= bs % len(jax.devices()) or 0
+        if bs == 0:
+            return []
+        it = ds.iterate(bs, cfg.seed + 1, prefetch=0)
+        return [self._prepare(cfg, b) for b in itertools.islice(it, cfg.eval_batches)]
+
+
+# --------------------------------------------------------------------------- segmentation
+class SegmentationTask(_DataTask):
+    needs_text = False
+
+    def build_model(self, cfg, rngs):
+        from jaxmotion.models import PointTransformerSeg
+
+        return PointTransformerSeg(cfg.model, rngs=rngs)
+
+    def loss(self, model, batch, key, *, train):
+        from jaxmotion.models import segmentation_loss
+
+        _, logits = model(batch["points"], batch["colors"], deterministic=not train)
+        loss, acc = segmentation_loss(logits, batch["semantic"])
+        return loss, {"accuracy": acc}
+
+
+def load_backbone(workdir):
+    """The frozen segmentation backbone from ``<workdir>/model.safetensors``."""
+    from jaxmotion.models import PointTransformerConfig, PointTransformerSeg
+    from jaxmotion.train.export import apply_weights, load_weights
+
+    tensors, saved = load_weights(Path(workdir) / "model.safetensors")
+    pt_cfg = config_from_dict(PointTransformerConfig, saved["model"])
+    net = PointTransformerSeg(pt_cfg, rngs=nnx.Rngs(0))
+    apply_weights(net, tensors, source=f"{workdir}/model.safetensors")
+    net.eval()
+    return net
+
+
+# --------------------------------------------------------------------------- ADM
+class ADMNet(nnx.Module):
+    """The frozen backbone + the trainable ADM (parameters under ``adm``)."""
+
+    def __init__(self, backbone, adm):
+        self.backbone = backbone
+        self.adm = adm
+
+    def features(self, xyz, rgb):
+        feats, _ = self.backbone(xyz, rgb, deterministic=True)
+        return jax.lax.stop_gradient(feats)
+
+
+class ADMTask(_DataTask):
+    trainable = nnx.All(nnx.Param, nnx.PathContains("adm"))
+
+    def build_model(self, cfg, rngs):
+        from jaxmotion.diffusion import make_schedule
+        from jaxmotion.models import make_adm
+
+        if not cfg.backbone_workdir:
+            raise ValueError(
+                "ADM needs the pretrained backbone: set backbone_workdir=DIR to the workdir of "
+                "'python -m jaxmotion.train --config configs/segmentation.py'")
+        backbone = load_backbone(cfg.backbone_workdir)
+        if backbone.cfg.out_dim != cfg.model.feature_dim:
+            raise ValueError(f"the backbone gives {backbone.cfg.out_dim}-d features but "
+                             f"model.feature_dim={cfg.model.feature_dim}; make them equal")
+        self.schedule = make_schedule(cfg.diffusion.schedule, cfg.diffusion.steps)
+        st = _stats(cfg)
+        self.mean = jnp.asarray(st["affordance_mean"])
+        self.std = jnp.asarray(st["affordance_std"])
+        return ADMNet(backbone, make_adm(cfg.model, rngs=rngs))
+
+    def loss(self, model, batch, key, *, train):
+        from jaxmotion.diffusion import diffusion_loss
+
+        feats = model.features(batch["points"], batch["colors"])
+        x0 = (batch["affordance"] - self.mean) / self.std
+        fixed = {"features": feats, "xyz": batch["points"]}
+
+        def denoise(x, t, cond):
+            return model.adm(x, t, {**cond, **fixed}, deterministic=not train)
+
+        loss = diffusion_loss(key, denoise, self.schedule, x0, {"text": batch["text_emb"]},
+                              cond_drop_prob=cfg_drop(self, train))
+        return loss, {}
+
+
+def cfg_drop(task, train: bool) -> float:
+    return task.cond_drop if train else 0.0
+
+
+# --------------------------------------------------------------------------- AMDM
+class AMDMNet(nnx.Module):
+    """The trainable AMDM (parameters under ``amdm``) and, optionally, a frozen ADM + backbone."""
+
+    def __init__(self, amdm, adm_net=None):
+        self.amdm = amdm
+        self.adm_net = adm_net
+
+
+class AMDMTask(_DataTask):
+    trainable = nnx.All(nnx.Param, nnx.PathContains("amdm"))
+
+    def build_model(self, cfg, rngs):
+        from jaxmotion.diffusion import make_schedule
+        from jaxmotion.models import AMDM
+
+        self.schedule = make_schedule(cfg.diffusion.schedule, cfg.diffusion.steps)
+        st = _stats(cfg)
+        self.m_mean, self.m_std = jnp.asarray(st["motion_mean"]), jnp.asarray(st["motion_std"])
+        self.a_mean = jnp.asarray(st["affordance_mean"])
+        self.a_std = jnp.asarray(st["affordance_std"])
+        self.predicted_fraction = float(cfg.predicted_fraction)
+        self.adm_steps = int(cfg.adm_sampler_steps)
+        adm_net = None
+        if self.predicted_fraction > 0 and cfg.model.scene_input == "affordance":
+            adm_net, self.adm_schedule = load_adm(cfg.adm_workdir)
+        return AMDMNet(AMDM(cfg.model, rngs=rngs), adm_net)
+
+    def _predicted_affordance(self, model, batch, key):
+        """ADM-sampled (normalised) maps for the batch, DDIM with few steps, no gradients."""
+        from jaxmotion.diffusion import ddim_sample
+
+        net = model.adm_net
+        feats = net.features(batch["points"], batch["colors"])
+        fixed = {"features": feats, "xyz": batch["points"], "text": batch["text_emb"]}
+
+        def denoise(x, t, cond):
+            return net.adm(x, t, fixed, deterministic=True)
+
+        shape = batch["affordance"].shape
+        return jax.lax.stop_gradient(ddim_sample(key, denoise, self.adm_schedule, shape,
+                                                 num_steps=self.adm_steps))
+
+    def loss(self, model, batch, key, *, train):
+        from jaxmotion.diffusion import diffusion_loss
+
+        k_mix, k_adm, k_drop, k_loss = jax.random.split(key, 4)
+        b = batch["motion"].shape[0]
+        x0 = (batch["motion"] - self.m_mean) / self.m_std
+        mask = batch["mask"]
+        if model.amdm.cfg.scene_input == "affordance":
+            aff = (batch["affordance"] - self.a_mean) / self.a_std
+            if model.adm_net is not None and train:
+                use_pred = jax.random.uniform(k_mix, (b,)) < self.predicted_fraction
+                pred = self._predicted_affordance(model, batch, k_adm)
+                aff = jnp.where(use_pred[:, None, None], pred, aff)
+            scene = {"xyz": batch["points"], "affordance": aff}
+        else:
+            scene = {"xyz": batch["points"], "rgb": batch["colors"]}
+        p = self.cond_drop if train else 0.0
+        kt, ka = jax.random.split(k_drop)
+        drops = {"drop_text": jax.random.uniform(kt, (b,)) < p,
+                 "drop_affordance": jax.random.uniform(ka, (b,)) < p}
+        cond = {"text": batch["text_emb"], "mask": mask, **scene, **drops}
+
+        def denoise(x, t, c):
+            return model.amdm(x, t, c, deterministic=not train)
+
+        loss = diffusion_loss(k_loss, denoise, self.schedule, x0, cond, mask, cond_drop_prob=0.0)
+        return loss, {}
+
+
+def load_adm(workdir):
+    """Frozen ADM (with its backbone) and its schedule from an ADM training workdir."""
+    from jaxmotion.diffusion import make_schedule
+    from jaxmotion.models import ADMConfig, make_adm
+    from jaxmotion.train.export import apply_weights, load_weights
+
+    if not workdir:
+        raise ValueError("predicted_fraction > 0 needs a trained ADM: set adm_workdir=DIR (or "
+                         "predicted_fraction=0 to train on ground-truth affordance only)")
+    tensors, saved = load_weights(Path(workdir) / "model.safetensors")
+    backbone = load_backbone(saved["backbone_workdir"])
+    adm = make_adm(config_from_dict(ADMConfig, saved["model"]), rngs=nnx.Rngs(0))
+    net = ADMNet(backbone, adm)
+    apply_weights(net.adm, {k.replace("params/adm/", "params/", 1): v
+                            for k, v in tensors.items() if k.startswith("params/adm/")},
+                  source=f"{workdir}/model.safetensors")
+    net.eval()
+    sched = make_schedule(saved["diffusion"]["schedule"], saved["diffusion"]["steps"])
+    return net, sched
+
+
+TASKS = {"segmentation": SegmentationTask, "adm": ADMTask, "amdm": AMDMTask}
+
+
+def get_task(cfg):
+    """The task object for ``cfg.task`` (with its condition-dropout rate)."""
+    if cfg.task not in TASKS:
+        raise ValueError(f"unknown task {cfg.task!r}; valid: {', '.join(TASKS)}")
+    task = TASKS[cfg.task]()
+    task.cond_drop = float(getattr(getattr(cfg, "diffusion", None), "cond_drop_prob", 0.0))
+    return task

@@ -84,6 +84,21 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_sample(args: argparse.Namespace) -> int:
+    from jaxmotion._jax_setup import enable_compilation_cache
+    from jaxmotion.sample import SamplerSpec, sample_split
+
+    enable_compilation_cache()
+    adm = SamplerSpec(args.adm_sampler or args.sampler, args.adm_steps or args.steps, args.eta,
+                      args.guidance)
+    amdm = SamplerSpec(args.sampler, args.steps, args.eta, args.guidance)
+    out = sample_split(args.data, args.split, args.adm, args.amdm, args.out,
+                       num_cases=args.cases, samples_per_case=args.per_case, seed=args.seed,
+                       adm=adm, amdm=amdm, batch_size=args.batch_size)
+    print(f"wrote {out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="jaxmotion",
@@ -136,6 +151,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--preview-count", type=int, default=4, help="samples to preview")
     p.add_argument("--preview-split", default="train", choices=("train", "val", "test"))
     p.set_defaults(func=_cmd_synth)
+
+    p = sub.add_parser(
+        "sample",
+        help="sample motions with trained ADM + AMDM for cases of a dataset split",
+        description="Run the affordance pipeline (ADM -> AMDM) from training workdirs over "
+        "the first cases of a split; write joints (crop and world frame), affordance maps, "
+        "ground truth and texts to an .npz.",
+    )
+    p.add_argument("--adm", required=True, help="ADM training workdir (model.safetensors)")
+    p.add_argument("--amdm", required=True, help="AMDM training workdir (model.safetensors)")
+    p.add_argument("--data", required=True, help="dataset folder (jaxmotion synth)")
+    p.add_argument("--split", default="test", choices=("train", "val", "test"))
+    p.add_argument("--cases", type=int, default=8, help="cases from the split")
+    p.add_argument("--per-case", type=int, default=1, help="samples per case")
+    p.add_argument("--sampler", default="ddim", choices=("ddim", "ddpm"))
+    p.add_argument("--steps", type=int, default=50, help="DDIM steps (DDPM uses all)")
+    p.add_argument("--adm-sampler", default=None, choices=("ddim", "ddpm"))
+    p.add_argument("--adm-steps", type=int, default=None)
+    p.add_argument("--eta", type=float, default=0.0)
+    p.add_argument("--guidance", type=float, default=1.0, help="classifier-free guidance scale")
+    p.add_argument("--batch-size", type=int, default=8)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default="samples.npz")
+    p.set_defaults(func=_cmd_sample)
 
     p = sub.add_parser(
         "demo",

@@ -44,12 +44,16 @@ def flatten_state(state) -> dict[str, np.ndarray]:
     return flat
 
 
-def save_weights(path, params, batch_stats, config: dict) -> Path:
-    """Write inference weights and the config atomically to ``path`` (safetensors)."""
+def save_weights(path, params, batch_stats, config: dict, extra: dict | None = None) -> Path:
+    """Write inference weights and the config atomically to ``path`` (safetensors).
+
+    ``extra``: more named arrays (e.g. ``{"stats/motion_mean": ...}``) stored as they are.
+    """
     from safetensors.numpy import save
 
     tensors = {f"params/{k}": v for k, v in flatten_state(params).items()}
     tensors.update({f"batch_stats/{k}": v for k, v in flatten_state(batch_stats).items()})
+    tensors.update({k: np.asarray(v) for k, v in (extra or {}).items()})
     tensors = {k: np.ascontiguousarray(v) for k, v in tensors.items()}
     data = save(tensors, metadata={"config": json.dumps(config), "format": "jaxmotion-weights-1"})
     with atomic_open(path, "wb") as f:

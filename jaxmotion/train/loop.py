@@ -256,9 +256,13 @@ def train(cfg, task: Task, *, on_step: Callable[[int, dict], None] | None = None
             if done % cfg.ckpt_every == 0 or done == cfg.steps:
                 ckpt.save(done, state)
                 if jax.process_index() == 0:
+                    extra = getattr(task, "export_tensors", dict)()
                     save_weights(workdir / "model.safetensors",
                                  state["ema"] if decay > 0 else state["params"],
-                                 state["batch_stats"], {**config_to_dict(cfg), "step": done})
+                                 state["batch_stats"],
+                                 {**config_to_dict(cfg), "step": done,
+                                  **getattr(task, "export_config", dict)()},
+                                 extra=extra)
             if on_step is not None:
                 on_step(done, m)
             bar.update()

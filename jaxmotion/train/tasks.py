@@ -33,6 +33,7 @@ from jaxmotion.config import config_from_dict, config_to_dict
 from jaxmotion.data.crop import CropSpec
 from jaxmotion.data.format import DatasetError
 from jaxmotion.data.loader import Dataset, Stats, compute_stats, load_stats, save_stats
+from jaxmotion.train.export import flatten_state
 
 __all__ = ["TASKS", "ADMTask", "AMDMTask", "SegmentationTask", "get_task"]
 
@@ -119,15 +120,19 @@ class SegmentationTask(_DataTask):
         return loss, {"accuracy": acc}
 
 
-def load_backbone(workdir):
-    """The frozen segmentation backbone from ``<workdir>/model.safetensors``."""
+def load_backbone(workdir=None, *, tensors=None, model_config=None, prefix="", source=""):
+    """The frozen segmentation backbone, from ``<workdir>/model.safetensors`` or from tensors
+    and a model config (as embedded in an ADM weights file)."""
     from jaxmotion.models import PointTransformerConfig, PointTransformerSeg
     from jaxmotion.train.export import apply_weights, load_weights
 
-    tensors, saved = load_weights(Path(workdir) / "model.safetensors")
-    pt_cfg = config_from_dict(PointTransformerConfig, saved["model"])
+    if workdir is not None:
+        source = f"{workdir}/model.safetensors"
+        tensors, saved = load_weights(Path(workdir) / "model.safetensors")
+        model_config = saved["model"]
+    pt_cfg = config_from_dict(PointTransformerConfig, model_config)
     net = PointTransformerSeg(pt_cfg, rngs=nnx.Rngs(0))
-    apply_weights(net, tensors, source=f"{workdir}/model.safetensors")
+    apply_weights(net, tensors, prefix=prefix, source=source)
     net.eval()
     return net
 
@@ -157,6 +162,9 @@ class ADMTask(_DataTask):
                 "ADM needs the pretrained backbone: set backbone_workdir=DIR to the workdir of "
                 "'python -m jaxmotion.train --config configs/segmentation.py'")
         backbone = load_backbone(cfg.backbone_workdir)
+        self.backbone_config = config_to_dict(backbone.cfg)
+        self.backbone_tensors = {f"params/backbone/{k}": v for k, v in
+                                 flatten_state(nnx.state(backbone, nnx.Param)).items()}
         if backbone.cfg.out_dim != cfg.model.feature_dim:
             raise ValueError(f"the backbone gives {backbone.cfg.out_dim}-d features but "
                              f"model.feature_dim={cfg.model.feature_dim}; make them equal")
@@ -165,6 +173,14 @@ class ADMTask(_DataTask):
         self.mean = jnp.asarray(st["affordance_mean"])
         self.std = jnp.asarray(st["affordance_std"])
         return ADMNet(backbone, make_adm(cfg.model, rngs=rngs))
+
+    def export_tensors(self) -> dict:
+        # The frozen backbone travels inside ADM's weights file: one self-contained file.
+        return {"stats/affordance_mean": self.mean, "stats/affordance_std": self.std,
+                **self.backbone_tensors}
+
+    def export_config(self) -> dict:
+        return {"backbone_model": self.backbone_config}
 
     def loss(self, model, batch, key, *, train):
         from jaxmotion.diffusion import diffusion_loss
@@ -212,6 +228,10 @@ class AMDMTask(_DataTask):
         if self.predicted_fraction > 0 and cfg.model.scene_input == "affordance":
             adm_net, self.adm_schedule = load_adm(cfg.adm_workdir)
         return AMDMNet(AMDM(cfg.model, rngs=rngs), adm_net)
+
+    def export_tensors(self) -> dict:
+        return {"stats/motion_mean": self.m_mean, "stats/motion_std": self.m_std,
+                "stats/affordance_mean": self.a_mean, "stats/affordance_std": self.a_std}
 
     def _predicted_affordance(self, model, batch, key):
         """ADM-sampled (normalised) maps for the batch, DDIM with few steps, no gradients."""
@@ -266,13 +286,13 @@ def load_adm(workdir):
     if not workdir:
         raise ValueError("predicted_fraction > 0 needs a trained ADM: set adm_workdir=DIR (or "
                          "predicted_fraction=0 to train on ground-truth affordance only)")
+    src = f"{workdir}/model.safetensors"
     tensors, saved = load_weights(Path(workdir) / "model.safetensors")
-    backbone = load_backbone(saved["backbone_workdir"])
+    backbone = load_backbone(tensors=tensors, model_config=saved["backbone_model"],
+                             prefix="backbone/", source=src)
     adm = make_adm(config_from_dict(ADMConfig, saved["model"]), rngs=nnx.Rngs(0))
     net = ADMNet(backbone, adm)
-    apply_weights(net.adm, {k.replace("params/adm/", "params/", 1): v
-                            for k, v in tensors.items() if k.startswith("params/adm/")},
-                  source=f"{workdir}/model.safetensors")
+    apply_weights(net.adm, tensors, prefix="adm/", source=src)
     net.eval()
     sched = make_schedule(saved["diffusion"]["schedule"], saved["diffusion"]["steps"])
     return net, sched

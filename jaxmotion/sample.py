@@ -1,0 +1,239 @@
+"""Sampling the affordance pipeline: ADM (affordance map) then AMDM (motion), vmap-batched.
+
+:class:`AffordancePipeline` holds the trained networks (loaded from their training
+workdirs' ``model.safetensors``) and exposes one jitted, vmapped function per
+stage. The per-example functions are written for a single crop and lifted with
+``jax.vmap``, so one compiled program samples any batch of scenes × texts × seeds:
+
+    pipe = AffordancePipeline.from_workdirs("runs/adm", "runs/amdm")
+    out = pipe.sample(key, points [B,N,3], colors [B,N,3], text_emb [B,D], mask [B,T])
+    out["joints"]      # [B, T, 22, 3] crop frame, metres
+    out["affordance"]  # [B, N, 6] in [0, 1]
+
+``jaxmotion sample`` runs it over a dataset split and writes an ``.npz``.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import nnx
+
+__all__ = ["AffordancePipeline", "SamplerSpec", "sample_split"]
+
+
+@dataclass(frozen=True)
+class SamplerSpec:
+    """How to sample one stage: ``method`` ddpm|ddim, ``steps`` (DDIM only), ``eta``, guidance."""
+
+    method: str = "ddim"
+    steps: int = 50
+    eta: float = 0.0
+    guidance: float = 1.0
+
+    def run(self, key, denoise, schedule, shape, cond, null_cond):
+        from jaxmotion.diffusion import ddim_sample, ddpm_sample
+
+        kw = dict(cond=cond, guidance_scale=self.guidance, null_cond=null_cond)
+        if self.method == "ddpm":
+            return ddpm_sample(key, denoise, schedule, shape, **kw)
+        if self.method == "ddim":
+            return ddim_sample(key, denoise, schedule, shape, num_steps=self.steps, eta=self.eta, **kw)
+        raise ValueError(f"unknown sampler {self.method!r}; valid: ddpm, ddim")
+
+
+def _tensor(tensors, name, source):
+    if name not in tensors:
+        raise ValueError(f"{source} has no {name!r}: retrain with this jaxmotion version")
+    return jnp.asarray(tensors[name])
+
+
+class AffordancePipeline:
+    """Frozen ADM (+ backbone) and AMDM with their schedules and normalisation statistics."""
+
+    def __init__(self, adm_net, adm_schedule, adm_stats, amdm, amdm_schedule, amdm_stats):
+        self.adm_net, self.adm_schedule = adm_net, adm_schedule
+        self.a_mean, self.a_std = adm_stats
+        self.amdm, self.amdm_schedule = amdm, amdm_schedule
+        self.m_mean, self.m_std, self.am_mean, self.am_std = amdm_stats
+        self.sigma = 0.8
+
+    @classmethod
+    def from_workdirs(cls, adm_workdir, amdm_workdir) -> "AffordancePipeline":
+        from jaxmotion.config import config_from_dict
+        from jaxmotion.diffusion import make_schedule
+        from jaxmotion.models import AMDM, AMDMConfig
+        from jaxmotion.train.export import apply_weights, load_weights
+        from jaxmotion.train.tasks import load_adm
+
+        adm_net, adm_sched = load_adm(adm_workdir)
+        a_src = Path(adm_workdir) / "model.safetensors"
+        at, _ = load_weights(a_src)
+        adm_stats = (_tensor(at, "stats/affordance_mean", a_src),
+                     _tensor(at, "stats/affordance_std", a_src))
+        m_src = Path(amdm_workdir) / "model.safetensors"
+        mt, mcfg = load_weights(m_src)
+        amdm = AMDM(config_from_dict(AMDMConfig, mcfg["model"]), rngs=nnx.Rngs(0))
+        apply_weights(amdm, mt, prefix="amdm/", source=str(m_src))
+        amdm.eval()
+        amdm_stats = tuple(_tensor(mt, f"stats/{n}", m_src) for n in
+                           ("motion_mean", "motion_std", "affordance_mean", "affordance_std"))
+        sched = make_schedule(mcfg["diffusion"]["schedule"], mcfg["diffusion"]["steps"])
+        pipe = cls(adm_net, adm_sched, adm_stats, amdm, sched, amdm_stats)
+        pipe.sigma = float(mcfg["affordance"]["sigma"])
+        return pipe
+
+    # -- one example (vmapped below) ---------------------------------------------------------
+    def _affordance_one(self, key, points, colors, text_emb, spec: SamplerSpec):
+        net = self.adm_net
+        feats = net.features(points[None], colors[None])
+        fixed = {"features": feats, "xyz": points[None]}
+
+        def denoise(x, t, cond):  # x may be the doubled batch of guidance
+            return net.adm(x, t, {**cond, **_tile(fixed, x.shape[0])}, deterministic=True)
+
+        shape = (1, points.shape[0], 6)
+        x0 = spec.run(key, denoise, self.adm_schedule, shape, {"text": text_emb[None]},
+                      lambda c: {"text": jnp.zeros_like(c["text"])})
+        aff = x0[0] * self.a_std + self.a_mean
+        return jnp.clip(aff, 0.0, 1.0)
+
+    def _motion_one(self, key, points, scene_feat, text_emb, mask, spec: SamplerSpec):
+        cfg = self.amdm.cfg
+        if cfg.scene_input == "affordance":
+            scene = {"xyz": points[None], "affordance": ((scene_feat - self.am_mean) / self.am_std)[None]}
+        else:
+            scene = {"xyz": points[None], "rgb": scene_feat[None]}
+        base = {"text": text_emb[None], "mask": mask[None], **scene}
+        base = self.amdm.encode_condition(base, deterministic=True)  # point tokens once
+        flags = {"drop_text": jnp.zeros((1,), bool), "drop_affordance": jnp.zeros((1,), bool)}
+
+        def denoise(x, t, cond):
+            return self.amdm(x, t, cond, deterministic=True)
+
+        def null(c):
+            return {**c, "drop_text": jnp.ones_like(c["drop_text"]),
+                    "drop_affordance": jnp.ones_like(c["drop_affordance"])}
+
+        shape = (1, mask.shape[0], cfg.motion_dim)
+        x0 = spec.run(key, denoise, self.amdm_schedule, shape, {**base, **flags}, null)
+        motion = x0[0] * self.m_std + self.m_mean
+        return motion.reshape(mask.shape[0], 22, 3)
+
+    # -- batched, jitted entry points --------------------------------------------------------
+    @functools.cached_property
+    def _jitted(self):
+        def aff(spec, keys, points, colors, text):
+            return jax.vmap(lambda k, p, c, e: self._affordance_one(k, p, c, e, spec))(
+                keys, points, colors, text)
+
+        def mot(spec, keys, points, feats, text, mask):
+            return jax.vmap(lambda k, p, f, e, m: self._motion_one(k, p, f, e, m, spec))(
+                keys, points, feats, text, mask)
+
+        return jax.jit(aff, static_argnums=0), jax.jit(mot, static_argnums=0)
+
+    def sample_affordance(self, key, points, colors, text_emb, spec=SamplerSpec(steps=50)):
+        """``[B,N,3], [B,N,3], [B,D] -> [B,N,6]`` affordance maps in [0, 1]."""
+        keys = jax.random.split(key, points.shape[0])
+        return self._jitted[0](spec, keys, points, colors, text_emb)
+
+    def sample_motion(self, key, points, scene_feat, text_emb, mask, spec=SamplerSpec(steps=50)):
+        """``scene_feat``: the affordance map [B,N,6] (or rgb for the one-stage model);
+        ``mask [B,T]`` valid frames. Returns joints ``[B,T,22,3]`` in the crop frame."""
+        keys = jax.random.split(key, points.shape[0])
+        return self._jitted[1](spec, keys, points, scene_feat, text_emb, mask)
+
+    def sample(self, key, points, colors, text_emb, mask, *, adm=SamplerSpec(steps=50),
+               amdm=SamplerSpec(steps=50)) -> dict:
+        """Both stages: affordance from scene + text, then motion from affordance + text."""
+        ka, km = jax.random.split(key)
+        if self.amdm.cfg.scene_input == "rgb":
+            return {"joints": self.sample_motion(km, points, colors, text_emb, mask, amdm)}
+        aff = self.sample_affordance(ka, points, colors, text_emb, adm)
+        return {"affordance": aff, "joints": self.sample_motion(km, points, aff, text_emb, mask, amdm)}
+
+
+def _tile(tree, b):
+    return jax.tree.map(lambda x: jnp.broadcast_to(x, (b, *x.shape[1:])), tree)
+
+
+def sample_split(data_dir, split, adm_workdir, amdm_workdir, out, *, num_cases: int = 8,
+                 samples_per_case: int = 1, seed: int = 0, adm=SamplerSpec(), amdm=SamplerSpec(),
+                 num_points: int | None = None, batch_size: int = 8, progress: bool = True) -> Path:
+    """Sample motions for the first ``num_cases`` examples of a split; write an ``.npz``.
+
+    Keys of the file: ``text`` [C], ``points`` [C,N,3], ``joints`` [C,K,T,22,3] (crop frame),
+    ``joints_world`` [C,K,T,22,3], ``affordance`` [C,K,N,6] (two-stage), ``mask`` [C,T],
+    ``gt_joints`` [C,T,22,3], ``target_mask`` [C,N], ``sample_file`` [C].
+    """
+    from tqdm.auto import tqdm
+
+    from jaxmotion._atomic import atomic_open
+    from jaxmotion.config import config_from_dict
+    from jaxmotion.data.config import CropConfig
+    from jaxmotion.data.crop import CropSpec, crop_sample
+    from jaxmotion.data.format import load_sample
+    from jaxmotion.text import load_text_encoder
+    from jaxmotion.train.export import load_weights
+
+    pipe = AffordancePipeline.from_workdirs(adm_workdir, amdm_workdir)
+    _, mcfg = load_weights(Path(amdm_workdir) / "model.safetensors")
+    crop_cfg = config_from_dict(CropConfig, mcfg["crop"])
+    spec = CropSpec(**{**crop_cfg.__dict__, "rotate": False,
+                       **({"num_points": num_points} if num_points else {})})
+    max_frames = int(mcfg["max_frames"])
+    files = sorted((Path(data_dir) / "samples" / split).glob("*.npz"))[:num_cases]
+    if not files:
+        raise FileNotFoundError(f"{Path(data_dir) / 'samples' / split}: no samples")
+    encoder = load_text_encoder("minilm")
+    cases = []
+    for i, f in enumerate(files):
+        s = load_sample(f)
+        with np.load(Path(data_dir) / "scenes" / f"{s['scene_id']}.npz") as sc:
+            xyz, rgb, inst = sc["xyz"], sc["rgb"], sc["instance"]
+        c = crop_sample(np.random.default_rng([seed, i]), xyz, rgb, inst, s["joints"], s["mask"],
+                        s["target_id"], spec)
+        t = len(s["mask"])
+        mask = np.zeros(max_frames, bool)
+        mask[:t] = s["mask"]
+        gt = np.zeros((max_frames, 22, 3), np.float32)
+        gt[:t] = c.joints
+        cases.append(dict(text=s["text"], points=c.points, colors=c.colors, mask=mask, gt=gt,
+                          target_mask=c.target_mask, rotation=c.rotation, shift=c.shift,
+                          file=f.name))
+    emb = encoder([c["text"] for c in cases])
+    rows = [(ci, k) for ci in range(len(cases)) for k in range(samples_per_case)]
+    joints = np.zeros((len(cases), samples_per_case, max_frames, 22, 3), np.float32)
+    affs = np.zeros((len(cases), samples_per_case, spec.num_points, 6), np.float32)
+    key = jax.random.key(seed)
+    for start in tqdm(range(0, len(rows), batch_size), desc="sampling", disable=not progress):
+        chunk = rows[start:start + batch_size]
+        pad = batch_size - len(chunk)
+        idx = [ci for ci, _ in chunk] + [chunk[-1][0]] * pad  # static batch: pad the last one
+        out = pipe.sample(jax.random.fold_in(key, start),
+                          np.stack([cases[i]["points"] for i in idx]),
+                          np.stack([cases[i]["colors"] for i in idx]), emb[idx],
+                          np.stack([cases[i]["mask"] for i in idx]), adm=adm, amdm=amdm)
+        out = jax.device_get(out)
+        for j, (ci, k) in enumerate(chunk):
+            joints[ci, k] = out["joints"][j]
+            if "affordance" in out:
+                affs[ci, k] = out["affordance"][j]
+    world = np.stack([joints[ci] @ cases[ci]["rotation"] + cases[ci]["shift"]
+                      for ci in range(len(cases))])
+    out_path = Path(out)
+    with atomic_open(out_path, "wb") as f:
+        np.savez(f, text=np.array([c["text"] for c in cases]),
+                 points=np.stack([c["points"] for c in cases]), joints=joints,
+                 joints_world=world.astype(np.float32), affordance=affs,
+                 mask=np.stack([c["mask"] for c in cases]),
+                 gt_joints=np.stack([c["gt"] for c in cases]),
+                 target_mask=np.stack([c["target_mask"] for c in cases]),
+                 sample_file=np.array([c["file"] for c in cases]))
+    return out_path

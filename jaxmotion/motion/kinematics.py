@@ -128,7 +128,7 @@ def fk_numpy(local: np.ndarray, transl: np.ndarray, rest: np.ndarray) -> np.ndar
 
 
 def frame(u: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """Orthonormal frame with columns ``[u, m'×u, m']``, ``m'`` = ``m`` made orthogonal to ``u``."""
+    """Orthonormal frame, columns ``[u, m'×u, m']`` with ``m'`` = ``m`` made orthogonal to ``u``."""
     u = normalize(u)
     m = normalize(m - np.sum(m * u, -1, keepdims=True) * u)
     return np.stack([u, np.cross(m, u), m], -1)
@@ -176,18 +176,25 @@ def make_body(betas: np.ndarray) -> Body:
     ankle_h = TOE_HEIGHT - toe_off[:, 1]  # the flat foot is the rest foot, stood up
     thigh, shin = _len(rest, KNEE, HIP), _len(rest, ANKLE, KNEE)
     hc = 0.5 * (rest[1] + rest[2])
-    # Relaxed stance: ankles under the hips, legs at 99 % of their reach.
+    # Relaxed stance: ankles under the hips, knees just off straight (~9 deg).
     lat = np.array([abs(rest[ANKLE[i], 0] - rest[HIP[i], 0]) for i in range(2)])
-    reach = 0.99 * (thigh + shin)
+    reach = 0.997 * (thigh + shin)
     stand = float(np.min(ankle_h + np.sqrt(reach**2 - lat**2) + (rest[HIP, 1] - hc[1])))
     return Body(
-        betas=betas, rest=rest, thigh=thigh, shin=shin,
-        upper_arm=_len(rest, ELBOW, SHOULDER), forearm=_len(rest, WRIST, ELBOW),
-        hip_center=hc, toe_off=toe_off, ankle_height=ankle_h, stand_height=stand,
-    )  # fmt: skip
+        betas=betas,
+        rest=rest,
+        thigh=thigh,
+        shin=shin,
+        upper_arm=_len(rest, ELBOW, SHOULDER),
+        forearm=_len(rest, WRIST, ELBOW),
+        hip_center=hc,
+        toe_off=toe_off,
+        ankle_height=ankle_h,
+        stand_height=stand,
+    )
 
 
-def two_bone(root, target, pole, l1, l2, rest_u1, rest_u2, rest_m, max_reach=0.9995):
+def two_bone(root, target, pole, l1, l2, rest_u1, rest_u2, rest_m, max_reach=0.9995, soft=0.01):
     """Analytic two-bone IK with exact bone lengths, vectorised over ``[T]``.
 
     Args:
@@ -196,15 +203,23 @@ def two_bone(root, target, pole, l1, l2, rest_u1, rest_u2, rest_m, max_reach=0.9
       l1, l2: bone lengths (metres). rest_u1, rest_u2: ``[3]`` rest bone directions.
       rest_m: ``[3]`` rest bend-plane normal (the hinge axis of the middle joint).
       max_reach: the end stops at this fraction of ``l1 + l2`` (no hyper-extension).
+      soft: "soft IK": beyond ``(1 - soft)(l1 + l2)`` the reach approaches its limit
+        exponentially instead of linearly, so the middle joint does not snap when
+        the limb straightens (the end may fall short there by a few millimetres).
     Returns:
       ``(g1 [T,3,3], g2 [T,3,3], mid [T,3], end [T,3])``: global rotations of the
       root and middle joints (each maps its rest bone onto the solved bone) and
-      the solved joint positions. ``end == target`` whenever it is reachable.
+      the solved joint positions. ``end == target`` within ``(1 - soft)(l1 + l2)``.
     """
     d = target - root
     dist = np.linalg.norm(d, axis=-1)
     dhat = normalize(d)
-    reach = np.clip(dist, abs(l1 - l2) + 1e-4, max_reach * (l1 + l2))
+    total = l1 + l2
+    if soft > 0:
+        ds = (1.0 - soft) * total
+        span = (max_reach - 1.0 + soft) * total
+        dist = np.where(dist > ds, ds + span * (1.0 - np.exp(-(dist - ds) / span)), dist)
+    reach = np.clip(dist, abs(l1 - l2) + 1e-4, max_reach * total)
     n = pole - np.sum(pole * dhat, -1, keepdims=True) * dhat
     # Degenerate pole (parallel to the limb): fall back to any perpendicular.
     alt = np.cross(dhat, np.array([0.0, 0.0, 1.0]))

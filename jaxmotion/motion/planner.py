@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import functools
 import heapq
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +29,7 @@ __all__ = [
     "BODY_TOP",
     "CELL",
     "Grid",
+    "MotionError",
     "PlanningError",
     "build_grid",
     "obstacle_boxes",
@@ -40,7 +42,11 @@ CELL = 0.05  # grid cell, metres
 BODY_TOP = 1.9  # obstacles above this height cannot touch a standing body, metres
 
 
-class PlanningError(RuntimeError):
+class MotionError(RuntimeError):
+    """The requested motion cannot be made in this room (the caller may resample)."""
+
+
+class PlanningError(MotionError):
     """No collision-free path (or free position) exists for the request."""
 
 
@@ -55,7 +61,7 @@ def obstacle_boxes(objects, exclude=()) -> np.ndarray:
 
 
 def _rect_dist(p: np.ndarray, rects: np.ndarray) -> np.ndarray:
-    """Signed xy distance of points ``[N,2]`` to rectangles ``[K,4]`` (negative inside): ``[N,K]``."""
+    """Signed xy distance (< 0 inside) of points ``[N,2]`` to rectangles ``[K,4]``: ``[N,K]``."""
     c = 0.5 * (rects[:, :2] + rects[:, 2:])
     h = 0.5 * (rects[:, 2:] - rects[:, :2])
     q = np.abs(p[:, None, :] - c[None]) - h[None]
@@ -69,7 +75,12 @@ def _exposed_edges(rects: tuple) -> np.ndarray:
     r = np.asarray(rects, float).reshape(-1, 4)
     segs = []
     for x0, y0, x1, y1 in r:
-        for a, b in (((x0, y0), (x1, y0)), ((x1, y0), (x1, y1)), ((x1, y1), (x0, y1)), ((x0, y1), (x0, y0))):
+        for a, b in (
+            ((x0, y0), (x1, y0)),
+            ((x1, y0), (x1, y1)),
+            ((x1, y1), (x0, y1)),
+            ((x0, y1), (x0, y0)),
+        ):
             a, b = np.array(a), np.array(b)
             # Split the edge where other rectangles start or stop, keep exposed pieces.
             ts = {0.0, 1.0}
@@ -81,7 +92,7 @@ def _exposed_edges(rects: tuple) -> np.ndarray:
             ts = sorted(ts)
             normal = np.array([b[1] - a[1], a[0] - b[0]])
             normal /= np.linalg.norm(normal)  # outward for counter-clockwise edges
-            for t0, t1 in zip(ts[:-1], ts[1:]):
+            for t0, t1 in itertools.pairwise(ts):
                 m = a + (b - a) * 0.5 * (t0 + t1) + 1e-4 * normal
                 if not np.any(_rect_dist(m[None], r)[0] < 0):
                     segs.append((a + (b - a) * t0, a + (b - a) * t1))
@@ -173,8 +184,12 @@ def _astar(passable: np.ndarray, start: tuple, goal: tuple) -> list:
     free = passable.ravel().tolist()
     s, g = start[0] * ny + start[1], goal[0] * ny + goal[1]
     gx, gy = goal
-    moves = [(dx, dy, dx * ny + dy, 1.4142135623730951 if dx and dy else 1.0)
-             for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx or dy]  # fmt: skip
+    moves = [
+        (dx, dy, dx * ny + dy, 1.4142135623730951 if dx and dy else 1.0)
+        for dx in (-1, 0, 1)
+        for dy in (-1, 0, 1)
+        if dx or dy
+    ]
     best = {s: 0.0}
     came = {}
     heap = [(0.0, 0.0, s)]
@@ -249,6 +264,7 @@ def plan_path(
     end_radius: float | None = None,
     end_zone: float = 0.6,
     step: float = 0.02,
+    final=None,
 ) -> np.ndarray:
     """Smooth collision-free walking path from ``start`` to ``goal`` (xy, metres).
 
@@ -256,6 +272,9 @@ def plan_path(
       grid: from :func:`build_grid`. radius: body clearance along the path.
       end_radius: smaller clearance allowed within ``end_zone`` of either end
         (default: ``radius``).
+      final: optional xy after ``goal``: the path continues straight from ``goal`` to
+        it (an approach segment checked at ``end_radius``), the corner at ``goal``
+        rounded like the others.
     Returns:
       ``[M,2]`` points spaced ``step`` apart along the path, first = start, last = goal.
     Raises:
@@ -263,20 +282,27 @@ def plan_path(
     """
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     end_radius = radius if end_radius is None else end_radius
-    ends = (start, goal)
+    ends = (start, goal) if final is None else (start, goal, np.asarray(final, float))
 
-    def need(xy):
-        return _required(grid, xy, ends, radius, end_radius, end_zone)
+    def need(xy):  # the smaller clearance is allowed near the start and the very end only
+        return _required(grid, xy, (ends[0], ends[-1]), radius, end_radius, end_zone)
 
     for name, p in (("start", start), ("goal", goal)):
-        if grid.clearance_at(p)[0] < end_radius - 1e-9:
-            raise PlanningError(f"{name} {p.round(3).tolist()} is not free (clearance < {end_radius} m)")
+        if grid.clearance_at(p)[0] < need(p[None])[0] - 1e-9:
+            raise PlanningError(
+                f"{name} {p.round(3).tolist()} is not free (clearance < {end_radius} m)"
+            )
+    tail = []
+    if final is not None:
+        if not _segment_ok(grid, goal, ends[2], need):
+            raise PlanningError("the final approach segment is blocked")
+        tail = [ends[2]]
     if _segment_ok(grid, start, goal, need, margin=0.05):
-        return resample(np.stack([start, goal]), step)
+        return resample(_round_corners(grid, np.asarray([start, goal] + tail), need), step)
     nx, ny = grid.clearance.shape
     ij = np.stack(np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij"), -1).reshape(-1, 2)
     req = need(grid.centers(ij)).reshape(nx, ny)
-    si, gi = (tuple(int(v) for v in grid.index(p[None])[0]) for p in ends)
+    si, gi = (tuple(int(v) for v in grid.index(p[None])[0]) for p in ends[:2])
     try:  # a small margin first: the segments between cell centres then stay clear too
         passable = grid.clearance >= req + 0.5 * CELL
         passable[si] = passable[gi] = True
@@ -289,7 +315,7 @@ def plan_path(
     cells[0], cells[-1] = start, goal
     # Keep only the turning points of the cell path, then shortcut between them.
     d = np.diff(cells, axis=0)
-    turn = np.abs(np.cross(d[:-1], d[1:])) > 1e-9
+    turn = np.abs(d[:-1, 0] * d[1:, 1] - d[:-1, 1] * d[1:, 0]) > 1e-9
     cells = np.concatenate([cells[:1], cells[1:-1][turn], cells[-1:]])
     # Greedy shortcutting: farthest visible vertex, preferring a 5 cm safety margin.
     pts, i = [cells[0]], 0
@@ -303,4 +329,4 @@ def plan_path(
                 j -= 1
         pts.append(cells[j])
         i = j
-    return resample(_round_corners(grid, np.asarray(pts), need), step)
+    return resample(_round_corners(grid, np.asarray(pts + tail), need), step)

@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING
 from jaxmotion._version import __version__
 
 _SUBMODULES = (
-    "config", "data", "diffusion", "geometry", "models", "motion", "scene", "text", "train", "viz",
+    "body", "config", "data", "diffusion", "eval", "geometry", "models", "motion", "scene", "text",
+    "train", "viz",
 )
 
 __all__ = ["__version__", *_SUBMODULES]

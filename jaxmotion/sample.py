@@ -216,15 +216,15 @@ def sample_split(data_dir, split, adm_workdir, amdm_workdir, out, *, num_cases: 
         chunk = rows[start:start + batch_size]
         pad = batch_size - len(chunk)
         idx = [ci for ci, _ in chunk] + [chunk[-1][0]] * pad  # static batch: pad the last one
-        out = pipe.sample(jax.random.fold_in(key, start),
+        res = pipe.sample(jax.random.fold_in(key, start),
                           np.stack([cases[i]["points"] for i in idx]),
                           np.stack([cases[i]["colors"] for i in idx]), emb[idx],
                           np.stack([cases[i]["mask"] for i in idx]), adm=adm, amdm=amdm)
-        out = jax.device_get(out)
+        res = jax.device_get(res)
         for j, (ci, k) in enumerate(chunk):
-            joints[ci, k] = out["joints"][j]
-            if "affordance" in out:
-                affs[ci, k] = out["affordance"][j]
+            joints[ci, k] = res["joints"][j]
+            if "affordance" in res:
+                affs[ci, k] = res["affordance"][j]
     world = np.stack([joints[ci] @ cases[ci]["rotation"] + cases[ci]["shift"]
                       for ci in range(len(cases))])
     out_path = Path(out)

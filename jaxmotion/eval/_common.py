@@ -1,0 +1,61 @@
+"""Small helpers shared by the metric modules: masks, masked means, emptiness checks.
+
+Empty inputs are handled in two ways, on purpose:
+
+- an axis of size zero (no frames, no target points) is a static shape, so it
+  raises :class:`ValueError` always, also under ``jit``;
+- a mask that selects nothing raises :class:`ValueError` when the function is
+  called eagerly with a concrete mask, and gives ``NaN`` (the mean of an empty
+  set) under ``jit`` / ``vmap``, where raising is impossible.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+
+def is_concrete(x) -> bool:
+    """True when ``x`` holds values (not a tracer inside ``jit`` / ``vmap``)."""
+    return not isinstance(x, jax.core.Tracer)
+
+
+def as_mask(mask, n: int, name: str):
+    """``None`` or a ``[n]`` bool array; checks the length."""
+    if mask is None:
+        return None
+    mask = jnp.asarray(mask)
+    if mask.shape != (n,):
+        raise ValueError(f"{name} must have shape [{n}], got {mask.shape}")
+    return mask.astype(bool)
+
+
+def require_any(mask, message: str):
+    """Raise ``ValueError(message)`` if a concrete mask selects nothing (no-op when traced)."""
+    if mask is not None and is_concrete(mask) and not bool(np.any(np.asarray(mask))):
+        raise ValueError(message)
+
+
+def require_nonempty(x, name: str, what: str):
+    """Raise ``ValueError`` when the leading axis of ``x`` has size zero."""
+    if x.shape[0] == 0:
+        raise ValueError(f"{name} is empty: {what}")
+
+
+def masked_mean(values, mask):
+    """Mean of ``values[T]`` over ``mask[T]`` (all when None); NaN when the mask is empty."""
+    values = jnp.asarray(values, jnp.float32)
+    if mask is None:
+        return jnp.mean(values)
+    w = mask.astype(values.dtype)
+    count = jnp.sum(w)
+    total = jnp.sum(jnp.where(mask, values, 0.0))
+    return jnp.where(count > 0, total / jnp.maximum(count, 1.0), jnp.nan)
+
+
+def safe_norm(x, axis=-1):
+    """Euclidean norm with a finite gradient at zero."""
+    sq = jnp.sum(x * x, axis=axis)
+    pos = sq > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1.0)), 0.0)

@@ -1,0 +1,35 @@
+"""A differentiable SMPL-X body in JAX and joints → body fitting.
+
+- :mod:`jaxmotion.body.model`: the SMPL-X kinematic tree with linear blend
+  skinning of the mannequin-x "wooden" mesh (:func:`load_mannequin`) or of a
+  user's own SMPL-X model file (:func:`load_smplx`); :func:`body_forward` poses
+  it from SMPL-X parameters into vertices, vertex normals and joints (z-up world).
+- :mod:`jaxmotion.body.fit`: :func:`fit_joints_to_body`, SMPL-X parameters from
+  joints with jaxopt's LBFGS, smoothness and joint-limit priors, vmapped over
+  sequences.
+- :mod:`jaxmotion.body.priors`: joint limits (degrees per joint axis) and
+  smoothness terms.
+"""
+
+from jaxmotion.body.fit import BodyFit, FitWeights, fit_joints_to_body, initial_pose
+from jaxmotion.body.model import (
+    BodyModel,
+    BodyOutput,
+    body_forward,
+    forward_tree,
+    lbs,
+    load_mannequin,
+    load_smplx,
+    local_rotations,
+    shaped_rest,
+    vertex_normals,
+)
+from jaxmotion.body.priors import (
+    JOINT_LIMITS_DEG,
+    LIMIT_AXES,
+    joint_limit_excess,
+    limit_angles,
+    rotation_from_limit_angles,
+)
+
+__all__ = [name for name in dir() if not name.startswith("_")]

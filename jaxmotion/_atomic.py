@@ -25,6 +25,10 @@ def atomic_open(path, mode: str = "wb"):
             yield f
             f.flush()
             os.fsync(f.fileno())
+        # mkstemp makes 0o600; give the file the usual permissions (or keep the old file's).
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~umask)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -27,7 +27,6 @@ import json
 import os
 import re
 import sys
-import tempfile
 import types
 import typing
 from collections.abc import Mapping, Sequence
@@ -369,18 +368,10 @@ def save_config_json(cfg: Any, path: str | os.PathLike) -> Path:
     """Write ``config_to_dict(cfg)`` as JSON to ``path`` atomically (temp file + os.replace)."""
     path = Path(path)
     text = json.dumps(config_to_dict(cfg), indent=2) + "\n"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    from jaxmotion._atomic import atomic_open
+
+    with atomic_open(path, "w") as f:
+        f.write(text)
     return path
 
 

@@ -62,6 +62,7 @@ class AffordancePipeline:
         self.amdm, self.amdm_schedule = amdm, amdm_schedule
         self.m_mean, self.m_std, self.am_mean, self.am_std = amdm_stats
         self.sigma = 0.8
+        self.amdm_config: dict = {}
 
     @classmethod
     def from_workdirs(cls, adm_workdir, amdm_workdir) -> "AffordancePipeline":
@@ -71,11 +72,7 @@ class AffordancePipeline:
         from jaxmotion.train.export import apply_weights, load_weights
         from jaxmotion.train.tasks import load_adm
 
-        adm_net, adm_sched = load_adm(adm_workdir)
-        a_src = Path(adm_workdir) / "model.safetensors"
-        at, _ = load_weights(a_src)
-        adm_stats = (_tensor(at, "stats/affordance_mean", a_src),
-                     _tensor(at, "stats/affordance_std", a_src))
+        adm_net, adm_sched, adm_stats = load_adm(adm_workdir)
         m_src = Path(amdm_workdir) / "model.safetensors"
         mt, mcfg = load_weights(m_src)
         amdm = AMDM(config_from_dict(AMDMConfig, mcfg["model"]), rngs=nnx.Rngs(0))
@@ -86,6 +83,7 @@ class AffordancePipeline:
         sched = make_schedule(mcfg["diffusion"]["schedule"], mcfg["diffusion"]["steps"])
         pipe = cls(adm_net, adm_sched, adm_stats, amdm, sched, amdm_stats)
         pipe.sigma = float(mcfg["affordance"]["sigma"])
+        pipe.amdm_config = mcfg  # the AMDM run's config.json (crop, max_frames, ...)
         return pipe
 
     # -- one example (vmapped below) ---------------------------------------------------------
@@ -180,10 +178,9 @@ def sample_split(data_dir, split, adm_workdir, amdm_workdir, out, *, num_cases: 
     from jaxmotion.data.crop import CropSpec, crop_sample
     from jaxmotion.data.format import load_sample
     from jaxmotion.text import load_text_encoder
-    from jaxmotion.train.export import load_weights
 
     pipe = AffordancePipeline.from_workdirs(adm_workdir, amdm_workdir)
-    _, mcfg = load_weights(Path(amdm_workdir) / "model.safetensors")
+    mcfg = pipe.amdm_config
     crop_cfg = config_from_dict(CropConfig, mcfg["crop"])
     spec = CropSpec(**{**crop_cfg.__dict__, "rotate": False,
                        **({"num_points": num_points} if num_points else {})})

@@ -11,12 +11,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 import trimesh
+
+from jaxmotion._atomic import atomic_open
 
 SUPPORTED_EXTENSIONS = (".ply", ".obj", ".glb", ".gltf", ".off", ".stl", ".npz")
 NPZ_KEYS = ("xyz", "rgb", "normal", "semantic", "instance", "objects", "name")
@@ -374,20 +375,10 @@ def save_scene(scene: Scene, path) -> Path:
         objects = json.dumps(list(scene.objects))
     except (TypeError, ValueError) as e:
         raise SceneError(f"{path}: the object table is not JSON-serialisable ({e})") from e
-    mode = (path.stat().st_mode & 0o777) if path.exists() else 0o644  # mkstemp makes 0o600
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, xyz=scene.xyz, rgb=scene.rgb, normal=scene.normal,
-                     semantic=scene.semantic, instance=scene.instance,
-                     objects=np.array(objects), name=np.array(scene.name))
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, mode)
-        os.replace(tmp, path)
-    except BaseException:  # interrupted or failed: leave no half-written file behind
-        os.path.exists(tmp) and os.unlink(tmp)
-        raise
+    with atomic_open(path, "wb") as f:  # interrupted or failed: no half-written file
+        np.savez(f, xyz=scene.xyz, rgb=scene.rgb, normal=scene.normal,
+                 semantic=scene.semantic, instance=scene.instance,
+                 objects=np.array(objects), name=np.array(scene.name))
     return path
 
 

@@ -96,7 +96,7 @@ class _DataTask:
         except DatasetError:
             return []
         bs = min(cfg.batch_size, len(ds))
-        bs -= bs % len(jax.devices()) or 0
+        bs -= bs % len(jax.devices())
         if bs == 0:
             return []
         it = ds.iterate(bs, cfg.seed + 1, prefetch=0)
@@ -193,12 +193,8 @@ class ADMTask(_DataTask):
             return model.adm(x, t, {**cond, **fixed}, deterministic=not train)
 
         loss = diffusion_loss(key, denoise, self.schedule, x0, {"text": batch["text_emb"]},
-                              cond_drop_prob=cfg_drop(self, train))
+                              cond_drop_prob=self.cond_drop if train else 0.0)
         return loss, {}
-
-
-def cfg_drop(task, train: bool) -> float:
-    return task.cond_drop if train else 0.0
 
 
 # --------------------------------------------------------------------------- AMDM
@@ -226,7 +222,7 @@ class AMDMTask(_DataTask):
         self.adm_steps = int(cfg.adm_sampler_steps)
         adm_net = None
         if self.predicted_fraction > 0 and cfg.model.scene_input == "affordance":
-            adm_net, self.adm_schedule = load_adm(cfg.adm_workdir)
+            adm_net, self.adm_schedule, _ = load_adm(cfg.adm_workdir)
         return AMDMNet(AMDM(cfg.model, rngs=rngs), adm_net)
 
     def export_tensors(self) -> dict:
@@ -278,7 +274,8 @@ class AMDMTask(_DataTask):
 
 
 def load_adm(workdir):
-    """Frozen ADM (with its backbone) and its schedule from an ADM training workdir."""
+    """Frozen ADM (with its backbone), its schedule and its affordance statistics
+    ``(mean [6], std [6])`` from an ADM training workdir (one read of its weights file)."""
     from jaxmotion.diffusion import make_schedule
     from jaxmotion.models import ADMConfig, make_adm
     from jaxmotion.train.export import apply_weights, load_weights
@@ -295,7 +292,12 @@ def load_adm(workdir):
     apply_weights(net.adm, tensors, prefix="adm/", source=src)
     net.eval()
     sched = make_schedule(saved["diffusion"]["schedule"], saved["diffusion"]["steps"])
-    return net, sched
+    missing = [k for k in ("stats/affordance_mean", "stats/affordance_std") if k not in tensors]
+    if missing:
+        raise ValueError(f"{src} has no {missing}: retrain ADM with this jaxmotion version")
+    stats = (jnp.asarray(tensors["stats/affordance_mean"]),
+             jnp.asarray(tensors["stats/affordance_std"]))
+    return net, sched, stats
 
 
 TASKS = {"segmentation": SegmentationTask, "adm": ADMTask, "amdm": AMDMTask}

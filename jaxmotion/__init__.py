@@ -17,11 +17,22 @@ from typing import TYPE_CHECKING
 from jaxmotion._version import __version__
 
 _SUBMODULES = (
-    "body", "config", "data", "diffusion", "eval", "geometry", "models", "motion", "scene", "text",
-    "train", "viz",
+    "body", "config", "data", "diffusion", "eval", "export", "generation", "geometry", "models",
+    "motion", "scene", "text", "train", "viz",
 )
 
-__all__ = ["__version__", *_SUBMODULES]
+__all__ = ["__version__", "generate", *_SUBMODULES]
+
+
+def generate(scene, text: str = "sit on the chair next to the table", **kwargs):
+    """Generate motions of a person doing ``text`` in ``scene`` ("demo", a path or a Scene).
+
+    See :func:`jaxmotion.generation.generate` for the options; returns a
+    :class:`jaxmotion.generation.Generation` (``.joints``, ``.smplx``, ``.save(dir)``).
+    """
+    from jaxmotion.generation import generate as _generate
+
+    return _generate(scene, text, **kwargs)
 
 if TYPE_CHECKING:  # pragma: no cover
     from jaxmotion import config, data, geometry, motion, scene, text, train, viz  # noqa: F401

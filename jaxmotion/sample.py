@@ -18,13 +18,14 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-__all__ = ["AffordancePipeline", "SamplerSpec", "sample_split"]
+__all__ = ["AffordancePipeline", "SamplerSpec", "load_cases", "sample_split"]
 
 
 @dataclass(frozen=True)
@@ -66,15 +67,31 @@ class AffordancePipeline:
 
     @classmethod
     def from_workdirs(cls, adm_workdir, amdm_workdir) -> "AffordancePipeline":
+        """From two training workdirs (their ``model.safetensors``), or the files themselves."""
+        return cls.from_files(*(p if Path(p).suffix == ".safetensors" else Path(p) / "model.safetensors"
+                                for p in (adm_workdir, amdm_workdir)))
+
+    @classmethod
+    def from_files(cls, adm_file, amdm_file) -> "AffordancePipeline":
+        """From the exported ``model.safetensors`` of an ADM and an AMDM run. Raises
+        ``ValueError`` when the two do not fit together (affordance channels, kernel width)."""
         from jaxmotion.config import config_from_dict
         from jaxmotion.diffusion import make_schedule
         from jaxmotion.models import AMDM, AMDMConfig
         from jaxmotion.train.export import apply_weights, load_weights
         from jaxmotion.train.tasks import load_adm
 
-        adm_net, adm_sched, adm_stats = load_adm(adm_workdir)
-        m_src = Path(amdm_workdir) / "model.safetensors"
+        adm_net, adm_sched, adm_stats = load_adm(adm_file)
+        m_src = Path(amdm_file)
         mt, mcfg = load_weights(m_src)
+        if mcfg.get("task") != "amdm":
+            raise ValueError(f"{m_src} is a {mcfg.get('task')!r} checkpoint, not an AMDM one")
+        a_dim = int(mcfg["model"].get("affordance_dim", adm_stats[0].shape[0]))
+        if mcfg["model"].get("scene_input", "affordance") == "affordance" and \
+                a_dim != adm_stats[0].shape[0]:
+            raise ValueError(f"{m_src} expects {a_dim} affordance channels but the ADM "
+                             f"{adm_file} predicts {adm_stats[0].shape[0]}: use checkpoints "
+                             "trained together")
         amdm = AMDM(config_from_dict(AMDMConfig, mcfg["model"]), rngs=nnx.Rngs(0))
         apply_weights(amdm, mt, prefix="amdm/", source=str(m_src))
         amdm.eval()
@@ -161,6 +178,43 @@ def _tile(tree, b):
     return jax.tree.map(lambda x: jnp.broadcast_to(x, (b, *x.shape[1:])), tree)
 
 
+def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | None = None,
+               seed: int = 0, num_points: int | None = None) -> tuple[list[dict], Any]:
+    """The first ``num_cases`` samples of a split as model inputs: crops as in training (the
+    AMDM run's ``crop`` config, no rotation), padded to its ``max_frames``. Each case: ``text``,
+    ``action``, ``points``, ``colors``, ``mask``, ``gt`` joints, ``target_mask``, ``rotation``,
+    ``shift`` (``x_world = x_crop @ rotation + shift``), ``file``."""
+    from jaxmotion.config import config_from_dict
+    from jaxmotion.data.config import CropConfig
+    from jaxmotion.data.crop import CropSpec, crop_sample
+    from jaxmotion.data.format import load_sample
+
+    crop_cfg = config_from_dict(CropConfig, model_config["crop"])
+    spec = CropSpec(**{**crop_cfg.__dict__, "rotate": False,
+                       **({"num_points": num_points} if num_points else {})})
+    max_frames = int(model_config["max_frames"])
+    files = sorted((Path(data_dir) / "samples" / split).glob("*.npz"))[:num_cases]
+    if not files:
+        raise FileNotFoundError(f"{Path(data_dir) / 'samples' / split}: no samples; build a "
+                                "dataset with `jaxmotion synth --out DIR`")
+    cases = []
+    for i, f in enumerate(files):
+        s = load_sample(f)
+        with np.load(Path(data_dir) / "scenes" / f"{s['scene_id']}.npz") as sc:
+            xyz, rgb, inst = sc["xyz"], sc["rgb"], sc["instance"]
+        c = crop_sample(np.random.default_rng([seed, i]), xyz, rgb, inst, s["joints"], s["mask"],
+                        s["target_id"], spec)
+        t = min(len(s["mask"]), max_frames)
+        mask = np.zeros(max_frames, bool)
+        mask[:t] = s["mask"][:t]
+        gt = np.zeros((max_frames, 22, 3), np.float32)
+        gt[:t] = c.joints[:t]
+        cases.append(dict(text=str(s["text"]), action=str(s["action"]), points=c.points,
+                          colors=c.colors, mask=mask, gt=gt, target_mask=c.target_mask,
+                          rotation=c.rotation, shift=c.shift, file=f.name))
+    return cases, spec
+
+
 def sample_split(data_dir, split, adm_workdir, amdm_workdir, out, *, num_cases: int = 8,
                  samples_per_case: int = 1, seed: int = 0, adm=SamplerSpec(), amdm=SamplerSpec(),
                  num_points: int | None = None, batch_size: int = 8, progress: bool = True) -> Path:
@@ -173,37 +227,13 @@ def sample_split(data_dir, split, adm_workdir, amdm_workdir, out, *, num_cases: 
     from tqdm.auto import tqdm
 
     from jaxmotion._atomic import atomic_open
-    from jaxmotion.config import config_from_dict
-    from jaxmotion.data.config import CropConfig
-    from jaxmotion.data.crop import CropSpec, crop_sample
-    from jaxmotion.data.format import load_sample
     from jaxmotion.text import load_text_encoder
 
     pipe = AffordancePipeline.from_workdirs(adm_workdir, amdm_workdir)
-    mcfg = pipe.amdm_config
-    crop_cfg = config_from_dict(CropConfig, mcfg["crop"])
-    spec = CropSpec(**{**crop_cfg.__dict__, "rotate": False,
-                       **({"num_points": num_points} if num_points else {})})
-    max_frames = int(mcfg["max_frames"])
-    files = sorted((Path(data_dir) / "samples" / split).glob("*.npz"))[:num_cases]
-    if not files:
-        raise FileNotFoundError(f"{Path(data_dir) / 'samples' / split}: no samples")
+    cases, spec = load_cases(data_dir, split, pipe.amdm_config, num_cases=num_cases, seed=seed,
+                             num_points=num_points)
+    max_frames = len(cases[0]["mask"])
     encoder = load_text_encoder("minilm")
-    cases = []
-    for i, f in enumerate(files):
-        s = load_sample(f)
-        with np.load(Path(data_dir) / "scenes" / f"{s['scene_id']}.npz") as sc:
-            xyz, rgb, inst = sc["xyz"], sc["rgb"], sc["instance"]
-        c = crop_sample(np.random.default_rng([seed, i]), xyz, rgb, inst, s["joints"], s["mask"],
-                        s["target_id"], spec)
-        t = len(s["mask"])
-        mask = np.zeros(max_frames, bool)
-        mask[:t] = s["mask"]
-        gt = np.zeros((max_frames, 22, 3), np.float32)
-        gt[:t] = c.joints
-        cases.append(dict(text=s["text"], points=c.points, colors=c.colors, mask=mask, gt=gt,
-                          target_mask=c.target_mask, rotation=c.rotation, shift=c.shift,
-                          file=f.name))
     emb = encoder([c["text"] for c in cases])
     rows = [(ci, k) for ci in range(len(cases)) for k in range(samples_per_case)]
     joints = np.zeros((len(cases), samples_per_case, max_frames, 22, 3), np.float32)

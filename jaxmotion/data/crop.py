@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Crop", "CropSpec", "crop_sample", "motion_features", "features_to_joints"]
+__all__ = ["Crop", "CropSpec", "crop_at", "crop_sample", "motion_features", "features_to_joints"]
 
 
 @dataclass(frozen=True)
@@ -103,13 +103,39 @@ def crop_sample(
     fits = c_lo <= c_hi
     centre = np.where(fits, rng.uniform(np.minimum(c_lo, c_hi), np.maximum(c_lo, c_hi)), 0.5 * (lo + hi))
 
-    inside = np.all(np.abs(xyz[:, :2] - centre) <= half, axis=1)
-    idx = np.flatnonzero(inside)
-    if len(idx) == 0:
+    try:
+        pick, pts, shift, rot = crop_at(rng, xyz, centre, spec)
+    except ValueError:
         raise ValueError(
             f"crop_sample: no scene point within the {spec.size} m square around the motion "
             f"(centre {centre.round(2).tolist()}); is the motion in the scene's frame?"
-        )
+        ) from None
+    return Crop(
+        points=pts,
+        colors=(2.0 * rgb[pick] - 1.0).astype(np.float32),
+        target_mask=np.asarray(instance[pick] == target_id),
+        joints=((joints - shift) @ rot.T).astype(np.float32),
+        mask=mask,
+        rotation=rot,
+        shift=shift,
+        indices=pick,
+    )
+
+
+def crop_at(
+    rng: np.random.Generator, xyz: np.ndarray, centre, spec: CropSpec = CropSpec()
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Steps 3–5 of the recipe for a given xy ``centre``: ``(indices [N], points [N,3] in the
+    crop frame, shift [3], rotation [3,3])`` with ``x_crop = rotation @ (x_world − shift)``.
+
+    Raises ``ValueError`` when no point of ``xyz`` lies in the square.
+    """
+    centre = np.asarray(centre, np.float64)[:2]
+    half = 0.5 * spec.size
+    idx = np.flatnonzero(np.all(np.abs(xyz[:, :2] - centre) <= half, axis=1))
+    if len(idx) == 0:
+        raise ValueError(f"no scene point within the {spec.size} m square centred at "
+                         f"{centre.round(2).tolist()}")
     n = spec.num_points
     if len(idx) >= n:
         pick = rng.choice(idx, n, replace=False)
@@ -120,16 +146,7 @@ def crop_sample(
     shift = np.array([centre[0], centre[1], z0], np.float32)
     angle = rng.uniform(-spec.rotation_range, spec.rotation_range) if spec.rotate else 0.0
     rot = _rot_z(angle)
-    return Crop(
-        points=((pts - shift) @ rot.T).astype(np.float32),
-        colors=(2.0 * rgb[pick] - 1.0).astype(np.float32),
-        target_mask=np.asarray(instance[pick] == target_id),
-        joints=((joints - shift) @ rot.T).astype(np.float32),
-        mask=mask,
-        rotation=rot,
-        shift=shift,
-        indices=pick,
-    )
+    return pick, ((pts - shift) @ rot.T).astype(np.float32), shift, rot
 
 
 def motion_features(joints: np.ndarray) -> np.ndarray:

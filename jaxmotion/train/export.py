@@ -107,3 +107,20 @@ def apply_weights(module: nnx.Module, tensors: dict[str, np.ndarray], *, prefix:
         treedef = jax.tree_util.tree_structure(state)
         nnx.update(module, jax.tree_util.tree_unflatten(treedef, new_leaves))
     return module
+
+
+def compact_weights(src, dst, *, dtype=np.float16) -> Path:
+    """Copy a ``model.safetensors`` with its parameters (``params/`` and any ``*/params/``
+    tensors) cast to ``dtype`` — half the size for shipping; :func:`apply_weights` casts them
+    back to the model's dtype on load. Statistics and batch-norm state keep their dtype."""
+    from safetensors.numpy import save
+
+    tensors, config = load_weights(src)
+    out = {}
+    for k, v in tensors.items():
+        is_param = k.startswith("params/") or "/params/" in k
+        out[k] = np.ascontiguousarray(v.astype(dtype) if is_param and v.dtype.kind == "f" else v)
+    data = save(out, metadata={"config": json.dumps(config), "format": "jaxmotion-weights-1"})
+    with atomic_open(dst, "wb") as f:
+        f.write(data)
+    return Path(dst)

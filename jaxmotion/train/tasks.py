@@ -14,6 +14,8 @@ into model inputs, and computes the loss inside the jitted step:
   ``predicted_fraction > 0`` and a trained ADM (``adm_workdir``), that fraction of
   each batch uses an ADM-sampled map (DDIM, ``adm_sampler_steps``) instead of the
   ground truth, as the paper mixes them 50/50.
+- ``evaluator``: the text–motion evaluator of the Guo et al. 2022 metrics
+  (:class:`jaxmotion.eval.evaluator.EvaluatorTask`; contrastive hinge loss).
 
 Text embeddings come from the frozen MiniLM encoder with an on-disk cache, and
 normalisation statistics from the dataset's ``stats.npz``.
@@ -33,6 +35,7 @@ from jaxmotion.config import config_from_dict, config_to_dict
 from jaxmotion.data.crop import CropSpec
 from jaxmotion.data.format import DatasetError
 from jaxmotion.data.loader import Dataset, Stats, compute_stats, load_stats, save_stats
+from jaxmotion.eval.evaluator import EvaluatorTask
 from jaxmotion.train.export import flatten_state
 
 __all__ = ["TASKS", "ADMTask", "AMDMTask", "SegmentationTask", "get_task"]
@@ -275,7 +278,8 @@ class AMDMTask(_DataTask):
 
 def load_adm(workdir):
     """Frozen ADM (with its backbone), its schedule and its affordance statistics
-    ``(mean [6], std [6])`` from an ADM training workdir (one read of its weights file)."""
+    ``(mean [6], std [6])`` from an ADM training workdir or its ``.safetensors`` weights
+    file (one read of the file)."""
     from jaxmotion.diffusion import make_schedule
     from jaxmotion.models import ADMConfig, make_adm
     from jaxmotion.train.export import apply_weights, load_weights
@@ -283,8 +287,10 @@ def load_adm(workdir):
     if not workdir:
         raise ValueError("predicted_fraction > 0 needs a trained ADM: set adm_workdir=DIR (or "
                          "predicted_fraction=0 to train on ground-truth affordance only)")
-    src = f"{workdir}/model.safetensors"
-    tensors, saved = load_weights(Path(workdir) / "model.safetensors")
+    path = Path(workdir)
+    path = path if path.suffix == ".safetensors" else path / "model.safetensors"
+    src = str(path)
+    tensors, saved = load_weights(path)
     backbone = load_backbone(tensors=tensors, model_config=saved["backbone_model"],
                              prefix="backbone/", source=src)
     adm = make_adm(config_from_dict(ADMConfig, saved["model"]), rngs=nnx.Rngs(0))
@@ -300,7 +306,8 @@ def load_adm(workdir):
     return net, sched, stats
 
 
-TASKS = {"segmentation": SegmentationTask, "adm": ADMTask, "amdm": AMDMTask}
+TASKS = {"segmentation": SegmentationTask, "adm": ADMTask, "amdm": AMDMTask,
+         "evaluator": EvaluatorTask}
 
 
 def get_task(cfg):

@@ -1,0 +1,305 @@
+"""``jaxmotion eval``: run checkpoints over a split, K samples per case, R replications.
+
+For every model (an ADM + AMDM pair and a sampler) and every replication ``r`` (seed
+``(seed, r)``), each case of the split is sampled ``K`` times on the crop the models were
+trained on (no rotation), then scored:
+
+- **physical** (the paper's Table 2 columns): goal distance at the anchor frame, contact
+  (s > −5 cm), non-collision, APD over the K samples and foot skating. With ``body=True``
+  (default) SMPL-X bodies are fitted to the joints (:func:`jaxmotion.body.fit_joints_to_body`)
+  and the mannequin mesh gives the signed distances, as the papers do with SMPL-X; with
+  ``body=False`` the joints-only sphere body (:mod:`jaxmotion.eval.joint_spheres`) is used.
+- **grounding** (Table 3): min / pelvis / all distance and success at 0.1 / 0.3 / 0.5 m of the
+  ADM maps against the target object's points (two-stage models only).
+- **text–motion** (with an evaluator, :mod:`jaxmotion.eval.evaluator`): FID, R-precision
+  top 1/2/3, MultiModal distance, Diversity, MultiModality (K ≥ 2), and a "real" row from the
+  ground truth.
+
+Per replication a metric is the mean over cases (and samples); the report gives the mean over
+replications ± the 95 % interval ``1.96 σ / √R`` (the HumanML3D convention).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["ModelSpec", "evaluate", "format_markdown", "parse_model", "write_report"]
+
+PHYSICAL = ("goal_distance", "contact", "non_collision", "apd", "skating")
+GROUNDING = ("min_dist", "pelvis_dist", "all_dist", "success@0.1", "success@0.3", "success@0.5")
+TEXT_MOTION = ("fid", "r_precision_top1", "r_precision_top2", "r_precision_top3", "mm_dist",
+               "diversity", "multimodality")
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelSpec:
+    """One row: a name, the ADM and AMDM (workdirs or ``.safetensors``) and the sampler."""
+
+    name: str
+    adm: str
+    amdm: str
+    method: str = "ddim"
+    steps: int = 50
+
+    @property
+    def sampler_label(self) -> str:
+        return "DDPM (all steps)" if self.method == "ddpm" else f"DDIM-{self.steps}"
+
+
+def parse_model(text: str) -> ModelSpec:
+    """``NAME=ADM,AMDM[,ddimN|ddpm]`` → :class:`ModelSpec` (the ``--model`` syntax)."""
+    name, sep, rest = text.partition("=")
+    parts = rest.split(",")
+    if not sep or not name or len(parts) not in (2, 3) or not all(parts):
+        raise ValueError(f"--model {text!r}: expected NAME=ADM,AMDM[,ddimN|ddpm], e.g. "
+                         "two_stage=runs/adm,runs/amdm,ddim50")
+    method, steps = "ddim", 50
+    if len(parts) == 3:
+        s = parts[2].lower()
+        if s == "ddpm":
+            method = "ddpm"
+        elif s.startswith("ddim") and s[4:].isdigit() and int(s[4:]) > 0:
+            steps = int(s[4:])
+        else:
+            raise ValueError(f"--model {text!r}: sampler {parts[2]!r} is not ddimN (N > 0) or ddpm")
+    return ModelSpec(name, parts[0], parts[1], method, steps)
+
+
+# --------------------------------------------------------------------------- per case
+def _physical_fn(body: bool, fps: float):
+    """Jitted ``(points, target_mask, joints [K,T,22,3], mask, anchor) -> metrics [K]`` (+ APD)."""
+    import jax
+    import jax.numpy as jnp
+
+    from jaxmotion.eval.metrics import (apd, contact, foot_skating, goal_distance,
+                                        joint_sphere_sdf, joint_sphere_sdf_frames, non_collision,
+                                        signed_distance_to_body_frames)
+
+    def one(points, target_mask, joints, mask, anchor, verts, normals):
+        if body:
+            sdf = signed_distance_to_body_frames(points, verts, normals)
+            goal = goal_distance(points, verts[anchor], normals[anchor], target_mask=target_mask)
+        else:
+            sdf = joint_sphere_sdf_frames(points, joints)
+            s = joint_sphere_sdf(points, joints[anchor])
+            goal = jnp.min(jnp.where(target_mask, jnp.maximum(0.0, -s), jnp.inf))
+        skate = foot_skating(joints, mask, fps=fps)
+        skate = skate["skate_ratio"]
+        return {"goal_distance": goal, "contact": contact(sdf, mask=mask),
+                "non_collision": non_collision(sdf, mask), "skating": skate}
+
+    @jax.jit
+    def run(points, target_mask, joints, mask, anchor, verts, normals):
+        per = jax.vmap(one, in_axes=(None, None, 0, None, None, 0, 0))(
+            points, target_mask, joints, mask, anchor, verts, normals)
+        per["apd"] = apd(joints, mask)
+        return per
+
+    return run
+
+
+def _bodies(joints, mask, fps: float):
+    """Fitted mannequin vertices and normals ``[K,T,V,3]`` for joints ``[K,T,22,3]``."""
+    from jaxmotion.body import body_forward, fit_joints_to_body, load_mannequin
+
+    fit = fit_joints_to_body(joints, np.broadcast_to(mask, joints.shape[:2]), iters=100, fps=fps)
+    out = body_forward(load_mannequin(), fit.global_orient, fit.body_pose, fit.transl)
+    return out.vertices, out.vertex_normals, float(np.asarray(fit.mean_error).mean())
+
+
+def _ci(values) -> dict:
+    v = np.asarray(values, np.float64)
+    v = v[np.isfinite(v)]
+    if len(v) == 0:
+        return {"mean": None, "ci95": None, "n": 0}
+    half = 1.96 * v.std(ddof=1) / math.sqrt(len(v)) if len(v) > 1 else 0.0
+    return {"mean": float(v.mean()), "ci95": float(half), "n": int(len(v))}
+
+
+# --------------------------------------------------------------------------- main
+def evaluate(
+    data_dir,
+    models: list[ModelSpec],
+    *,
+    split: str = "test",
+    num_cases: int = 64,
+    samples: int = 4,
+    replications: int = 3,
+    seed: int = 0,
+    body: bool = True,
+    evaluator=None,
+    batch_size: int = 16,
+    progress: bool = True,
+) -> dict:
+    """Evaluate ``models`` on the first ``num_cases`` cases of ``split``; see the module
+    docstring. Returns a JSON-ready dict: settings, and per model its sampler, per-replication
+    metrics and ``summary`` ``{metric: {mean, ci95, n}}``."""
+    import jax
+    from tqdm.auto import tqdm
+
+    from jaxmotion.eval.metrics import affordance_grounding_from_map
+    from jaxmotion.sample import AffordancePipeline, SamplerSpec, load_cases
+    from jaxmotion.text import load_text_encoder
+
+    if samples < 1 or replications < 1 or num_cases < 1:
+        raise ValueError("num_cases, samples and replications must be ≥ 1")
+    if evaluator is not None and isinstance(evaluator, (str, Path)):
+        from jaxmotion.eval.evaluator import load_evaluator
+
+        evaluator = load_evaluator(evaluator)
+    encoder = load_text_encoder("minilm")
+    fps = 30.0
+    phys = _physical_fn(body, fps)
+    report = {"settings": {"data_dir": str(data_dir), "split": split, "num_cases": num_cases,
+                           "samples": samples, "replications": replications, "seed": seed,
+                           "body": "mannequin (SMPL-X fit)" if body else "joint spheres",
+                           "evaluator": getattr(evaluator, "version", None)},
+              "models": {}}
+    total = len(models) * replications
+    bar = tqdm(total=total * num_cases, desc="eval", disable=not progress, unit="case")
+    for spec in models:
+        t_model = time.perf_counter()
+        pipe = AffordancePipeline.from_workdirs(spec.adm, spec.amdm)
+        cases, _ = load_cases(data_dir, split, pipe.amdm_config, num_cases=num_cases, seed=seed)
+        emb = encoder([c["text"] for c in cases])
+        sampler = SamplerSpec(spec.method, spec.steps)
+        two_stage = pipe.amdm.cfg.scene_input == "affordance"
+        reps, fit_errors = [], []
+        for r in range(replications):
+            key = jax.random.fold_in(jax.random.key(seed), r)
+            rows = [(ci, k) for ci in range(len(cases)) for k in range(samples)]
+            joints = np.zeros((len(cases), samples, *cases[0]["gt"].shape), np.float32)
+            affs = [[None] * samples for _ in cases]
+            for start in range(0, len(rows), batch_size):
+                chunk = rows[start:start + batch_size]
+                idx = [ci for ci, _ in chunk] + [chunk[-1][0]] * (batch_size - len(chunk))
+                res = jax.device_get(pipe.sample(
+                    jax.random.fold_in(key, start), np.stack([cases[i]["points"] for i in idx]),
+                    np.stack([cases[i]["colors"] for i in idx]), emb[idx],
+                    np.stack([cases[i]["mask"] for i in idx]), adm=sampler, amdm=sampler))
+                for j, (ci, k) in enumerate(chunk):
+                    joints[ci, k] = res["joints"][j]
+                    if two_stage:
+                        affs[ci][k] = res["affordance"][j]
+            per_case = []
+            for ci, c in enumerate(cases):
+                mask = c["mask"]
+                valid = np.flatnonzero(mask)
+                anchor = int(valid[0] if c["action"] == "stand_up" else valid[-1])
+                if body:
+                    verts, normals, err = _bodies(joints[ci], mask, fps)
+                    fit_errors.append(err)
+                else:
+                    verts = normals = np.zeros((samples, 1, 1, 3), np.float32)
+                m = jax.device_get(phys(c["points"], c["target_mask"], joints[ci], mask, anchor,
+                                        verts, normals))
+                row = {k: float(np.mean(v)) for k, v in m.items()}
+                if two_stage and c["target_mask"].any():
+                    g = [jax.device_get(affordance_grounding_from_map(a, c["target_mask"]))
+                         for a in affs[ci]]
+                    row.update({k: float(np.mean([x[k] for x in g])) for k in GROUNDING})
+                per_case.append(row)
+                bar.update(1)
+            keys = sorted({k for row in per_case for k in row})
+            rep = {k: float(np.nanmean([row.get(k, np.nan) for row in per_case])) for k in keys}
+            if evaluator is not None:
+                from jaxmotion.eval.evaluator import text_motion_scores
+
+                mask = np.stack([c["mask"] for c in cases])
+                tm = text_motion_scores(evaluator, [c["text"] for c in cases],
+                                        np.stack([c["gt"] for c in cases]), mask, joints, mask,
+                                        np.random.default_rng([seed, r]))
+                rep.update({k: float(v) for k, v in tm.get("generated", tm).items()})
+                if r == 0 and "real" in tm:
+                    report.setdefault("real", {k: float(v) for k, v in tm["real"].items()})
+            reps.append(rep)
+        keys = sorted({k for rep in reps for k in rep})
+        report["models"][spec.name] = {
+            "adm": str(spec.adm), "amdm": str(spec.amdm), "sampler": spec.sampler_label,
+            "two_stage": two_stage, "scene_input": pipe.amdm.cfg.scene_input,
+            "adm_arch": _adm_arch(spec.adm),
+            "replications": reps,
+            "summary": {k: _ci([rep.get(k, np.nan) for rep in reps]) for k in keys},
+            "body_fit_error_m": float(np.mean(fit_errors)) if fit_errors else None,
+            "seconds": time.perf_counter() - t_model,
+        }
+    bar.close()
+    return report
+
+
+def _adm_arch(adm) -> str:
+    from jaxmotion.train.export import load_weights
+
+    path = Path(adm)
+    path = path if path.suffix == ".safetensors" else path / "model.safetensors"
+    return str(load_weights(path)[1]["model"].get("arch", "perceiver"))
+
+
+# --------------------------------------------------------------------------- report
+def _cell(s: dict | None, scale: float = 1.0, digits: int = 3) -> str:
+    if not s or s.get("mean") is None:
+        return "–"
+    m, h = s["mean"] * scale, (s["ci95"] or 0.0) * scale
+    return f"{m:.{digits}f} ± {h:.{digits}f}"
+
+
+def format_markdown(report: dict) -> str:
+    """Tables laid out like the paper's Tables 2 (motion), 3 (grounding) and 5 (samplers)."""
+    st = report["settings"]
+    lines = [f"Split `{st['split']}` of `{st['data_dir']}`: {st['num_cases']} cases × "
+             f"{st['samples']} samples × {st['replications']} replications; body: {st['body']}; "
+             f"mean ± 95 % interval over replications.", ""]
+    models = report["models"]
+    has_tm = any("fid" in m["summary"] for m in models.values())
+    head = ["method", "sampler", "goal dist. (m) ↓", "contact (%) ↑", "non-collision (%) ↑",
+            "APD ↑", "skating (%) ↓"]
+    if has_tm:
+        head += ["FID ↓", "R-prec. top-3 ↑", "MM dist. ↓", "diversity →", "multimodality ↑"]
+    lines += ["**Motion (as Table 2)**", "", "| " + " | ".join(head) + " |",
+              "|" + "---|" * len(head)]
+    if has_tm and "real" in report:
+        r = report["real"]
+        cells = ["real (ground truth)", "–", "–", "–", "–", "–", "–",
+                 f"{r.get('fid', 0):.3f}", f"{r.get('r_precision_top3', 0):.3f}",
+                 f"{r.get('mm_dist', 0):.3f}", f"{r.get('diversity', 0):.3f}", "–"]
+        lines.append("| " + " | ".join(cells) + " |")
+    for name, m in models.items():
+        s = m["summary"]
+        cells = [name, m["sampler"], _cell(s.get("goal_distance")),
+                 _cell(s.get("contact"), 100, 2), _cell(s.get("non_collision"), 100, 2),
+                 _cell(s.get("apd")), _cell(s.get("skating"), 100, 2)]
+        if has_tm:
+            cells += [_cell(s.get(k)) for k in ("fid", "r_precision_top3", "mm_dist", "diversity",
+                                               "multimodality")]
+        lines.append("| " + " | ".join(cells) + " |")
+    grounded = {n: m for n, m in models.items() if m["two_stage"]}
+    if grounded:
+        head = ["method", "ADM", "min dist. ↓", "pelvis dist. ↓", "all dist. ↓", "succ. 0.1 ↑",
+                "succ. 0.3 ↑", "succ. 0.5 ↑"]
+        lines += ["", "**Affordance grounding (as Table 3)**", "", "| " + " | ".join(head) + " |",
+                  "|" + "---|" * len(head)]
+        for name, m in grounded.items():
+            s = m["summary"]
+            lines.append("| " + " | ".join([name, m["adm_arch"]] + [
+                _cell(s.get(k)) if "dist" in k else _cell(s.get(k), 100, 1) for k in GROUNDING])
+                + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_report(report: dict, out) -> tuple[Path, Path]:
+    """Write ``out/results.json`` and ``out/results.md`` (atomically)."""
+    from jaxmotion._atomic import atomic_open
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    with atomic_open(out / "results.json", "w") as f:
+        json.dump(report, f, indent=2)
+    with atomic_open(out / "results.md", "w") as f:
+        f.write(format_markdown(report))
+    return out / "results.json", out / "results.md"

@@ -1,0 +1,469 @@
+"""From a room and a sentence to a motion: the main job of jaxmotion.
+
+:func:`generate` runs the affordance pipeline end to end on any scene::
+
+    import jaxmotion
+    res = jaxmotion.generate("demo", "sit on the chair next to the table", samples=4, seed=0)
+    res.joints        # [K, T, 22, 3] world frame (the scene's), metres, z-up
+    res.smplx         # SMPL-X parameters fitted to the joints (jaxopt LBFGS)
+    res.save("out")   # motion.npz, motion.bvh, motion.glb, motion.gif, viewer.html
+
+Steps:
+
+1. **Scene**: a path (any mesh or point cloud :func:`jaxmotion.scene.load_scene` reads, a
+   ScanNet-style labelled ``.ply``, a jaxmotion ``.npz``), a :class:`~jaxmotion.scene.Scene`,
+   or ``"demo"`` (the built-in room, :func:`demo_scene`).
+2. **Region**: the models see a ``crop.size`` square (4 m) of the room, as in training. With
+   ``object_id`` the square is centred on that object. Otherwise, when the room is larger
+   than one square, the ADM is run on overlapping squares tiling the room and the square is
+   centred on the strongest predicted pelvis-affordance peak (the place the text points at).
+3. **ADM → AMDM**: affordance maps then motions for ``samples`` seeds, one jitted, vmapped
+   program (DDIM with ``steps`` steps per stage).
+4. **Body**: SMPL-X parameters fitted to the joints (:func:`jaxmotion.body.fit_joints_to_body`).
+
+The checkpoints default to the ones shipped in the package (``jaxmotion/assets``, trained on the
+synthetic world by the commands in ``docs/results.md``); pass ``checkpoints=DIR`` with
+``adm.safetensors`` and ``amdm.safetensors`` (or two training workdirs as a tuple) for others.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "DEFAULT_TEXT",
+    "GenerateError",
+    "Generation",
+    "default_checkpoints",
+    "demo_scene",
+    "generate",
+]
+
+DEFAULT_TEXT = "sit on the chair next to the table"
+DEMO_SEED = 22  # a dining room (L-shaped, 4.3 x 6.0 m) with one table and one chair by it
+DEMO_POINTS = 60_000
+OUTPUT_FILES = ("motion.npz", "motion.bvh", "motion.glb", "motion.gif", "viewer.html")
+_ASSETS = Path(__file__).parent / "assets"
+
+
+class GenerateError(ValueError):
+    """Bad input to :func:`generate`; the message names the problem and the fix."""
+
+
+# --------------------------------------------------------------------------- inputs
+def demo_scene(num_points: int = DEMO_POINTS):
+    """The built-in demo room (deterministic: a synthetic dining room, z-up, metres)."""
+    return _demo_scene(int(num_points))
+
+
+@functools.lru_cache(maxsize=2)
+def _demo_scene(num_points: int):
+    from jaxmotion.scene.rooms import room_to_scene, sample_room
+
+    room = sample_room(DEMO_SEED)
+    scene = room_to_scene(room, num_points, np.random.default_rng(DEMO_SEED))
+    return dataclasses.replace(scene, name="demo")
+
+
+def default_checkpoints() -> tuple[Path, Path]:
+    """Paths of the shipped ADM and AMDM weights."""
+    return _ASSETS / "adm.safetensors", _ASSETS / "amdm.safetensors"
+
+
+def _resolve_checkpoints(checkpoints) -> tuple[Path, Path]:
+    if checkpoints is None:
+        adm, amdm = default_checkpoints()
+        if not (adm.is_file() and amdm.is_file()):
+            raise GenerateError(
+                f"the default checkpoints are missing from {_ASSETS}; reinstall jaxmotion or pass "
+                "checkpoints=DIR (a folder with adm.safetensors and amdm.safetensors)")
+        return adm, amdm
+    if isinstance(checkpoints, (tuple, list)):
+        if len(checkpoints) != 2:
+            raise GenerateError("checkpoints as a pair must be (ADM, AMDM) workdirs or files")
+        paths = [Path(p) for p in checkpoints]
+        paths = [p if p.suffix == ".safetensors" else p / "model.safetensors" for p in paths]
+    else:
+        folder = Path(checkpoints)
+        paths = [folder / "adm.safetensors", folder / "amdm.safetensors"]
+    for p in paths:
+        if not p.is_file():
+            raise GenerateError(f"{p}: no such checkpoint file; a checkpoint folder holds "
+                                "adm.safetensors and amdm.safetensors")
+    return paths[0], paths[1]
+
+
+@functools.lru_cache(maxsize=4)
+def _pipeline(adm: str, amdm: str):
+    from jaxmotion.sample import AffordancePipeline
+
+    try:
+        return AffordancePipeline.from_files(adm, amdm)
+    except (KeyError, ValueError) as e:
+        raise GenerateError(f"checkpoints {adm} and {amdm} do not load together: {e}") from e
+
+
+@functools.lru_cache(maxsize=1)
+def _text_encoder():
+    from jaxmotion.text import load_text_encoder
+
+    return load_text_encoder("minilm")
+
+
+def _check_text(text, encoder) -> str:
+    if not isinstance(text, str):
+        raise GenerateError(f"text must be a string, got {type(text).__name__}")
+    text = " ".join(text.split())
+    if not text:
+        raise GenerateError('text is empty; describe the motion, e.g. "sit on the chair"')
+    n = len(encoder.tokenize([text])[0])
+    if n >= encoder.max_length:
+        raise GenerateError(f"text is too long ({n} tokens; the text encoder reads at most "
+                            f"{encoder.max_length - 2}): shorten it to one or two sentences")
+    return text
+
+
+def _load(scene, num_points: int | None):
+    from jaxmotion.scene import Scene, SceneError, load_scene
+
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, str) and scene == "demo":
+        return demo_scene()
+    try:
+        return load_scene(scene, num_points=num_points)
+    except SceneError as e:
+        raise GenerateError(str(e)) from e
+
+
+# --------------------------------------------------------------------------- result
+@dataclasses.dataclass
+class Generation:
+    """The result of :func:`generate` (numpy arrays; K samples, T frames, N crop points).
+
+    Attributes:
+      text: the instruction (whitespace-normalised); scene: the whole room.
+      joints: ``[K, T, 22, 3]`` SMPL-X body joints in the scene's frame, metres.
+      fps: frames per second; mask: ``[T]`` valid frames.
+      smplx: ``global_orient [K,T,3]``, ``body_pose [K,T,21,3]``, ``transl [K,T,3]``,
+        ``betas [K,10]`` (axis-angle, SMPL-X conventions), or empty without fitting.
+      fit_error: ``[K]`` mean joint distance (m) between the fitted body and ``joints``.
+      crop_xyz ``[N,3]`` (scene frame), crop_rgb ``[N,3]`` in [0, 1]: the points the models saw.
+      affordance: ``[K, N, 6]`` the ADM's maps (pelvis, feet, neck, wrists) in [0, 1].
+      rotation ``[3,3]``, shift ``[3]``: the crop frame, ``x_scene = x_crop @ rotation + shift``.
+      object_id: the object chosen with ``object_id`` (else None); seed, steps: as passed.
+      timings: seconds per stage.
+    """
+
+    text: str
+    scene: Any
+    joints: np.ndarray
+    fps: float
+    mask: np.ndarray
+    smplx: dict
+    fit_error: np.ndarray
+    crop_xyz: np.ndarray
+    crop_rgb: np.ndarray
+    affordance: np.ndarray
+    rotation: np.ndarray
+    shift: np.ndarray
+    object_id: int | None
+    seed: int
+    steps: int
+    timings: dict
+
+    @property
+    def num_samples(self) -> int:
+        return self.joints.shape[0]
+
+    def __repr__(self):
+        k, t = self.joints.shape[:2]
+        return (f"Generation({self.text!r}, samples={k}, frames={t}, fps={self.fps:g}, "
+                f"scene={self.scene.name!r})")
+
+    def save(self, out, *, video: str | None = "gif", bvh_sample: int = 0) -> dict[str, Path]:
+        """Write the outputs into folder ``out`` (created); returns ``{name: path}``.
+
+        ``motion.npz`` (every field), ``motion.bvh`` (sample ``bvh_sample``), ``motion.glb``
+        (skinned mannequins with the room), ``motion.gif`` / ``motion.mp4`` (``video="gif"|"mp4"``,
+        None to skip) and ``viewer.html``. Files are built in a temporary folder and moved in
+        at the end, so an error leaves no half-written output.
+        """
+        from jaxmotion import export
+
+        if video not in (None, "gif", "mp4"):
+            raise GenerateError(f"video must be 'gif', 'mp4' or None, got {video!r}")
+        if not self.smplx:
+            raise GenerateError("this result has no SMPL-X fit (fit=False): BVH and GLB need it")
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        written: dict[str, Path] = {}
+        with tempfile.TemporaryDirectory(prefix=".generate-", dir=out) as tmp:
+            tmp = Path(tmp)
+            with open(tmp / "motion.npz", "wb") as f:
+                np.savez(f, joints=self.joints.astype(np.float32), fps=np.float32(self.fps),
+                         mask=self.mask, text=np.array(self.text),
+                         **{k: np.asarray(v, np.float32) for k, v in self.smplx.items()},
+                         fit_error=self.fit_error.astype(np.float32),
+                         scene_rotation=self.rotation.astype(np.float32),
+                         scene_shift=self.shift.astype(np.float32),
+                         crop_xyz=self.crop_xyz.astype(np.float32),
+                         affordance=self.affordance.astype(np.float16),
+                         object_id=np.int64(-1 if self.object_id is None else self.object_id),
+                         seed=np.int64(self.seed), steps=np.int64(self.steps),
+                         scene_name=np.array(self.scene.name))
+            p = self.smplx
+            i = int(bvh_sample)
+            export.write_bvh(tmp / "motion.bvh", p["global_orient"][i], p["body_pose"][i],
+                             p["transl"][i], p["betas"][i], self.fps)
+            xyz, rgb = _subsample(self.scene.xyz, self.scene.rgb, 60_000, self.seed)
+            export.write_glb(tmp / "motion.glb", global_orient=p["global_orient"],
+                             body_pose=p["body_pose"], transl=p["transl"], betas=p["betas"],
+                             fps=self.fps, scene_xyz=xyz, scene_rgb=rgb)
+            heat = self._scene_heat(xyz)
+            if video:
+                export.render_motion_video(tmp / f"motion.{video}", xyz, rgb, self.joints,
+                                           self.fps, affordance=None)
+            export.write_viewer_html(tmp / "viewer.html", scene_xyz=xyz, scene_rgb=rgb,
+                                     joints=self.joints, fps=self.fps, text=self.text,
+                                     affordance=heat)
+            for f in sorted(tmp.iterdir()):
+                os.replace(f, out / f.name)
+                written[f.name] = out / f.name
+        return written
+
+    def _scene_heat(self, xyz: np.ndarray) -> np.ndarray:
+        """The first sample's pelvis affordance carried from the crop to ``xyz`` (nearest crop
+        point within 10 cm, else 0)."""
+        from scipy.spatial import cKDTree
+
+        d, idx = cKDTree(self.crop_xyz).query(xyz, k=1, distance_upper_bound=0.1)
+        heat = np.zeros(len(xyz), np.float32)
+        ok = np.isfinite(d)
+        heat[ok] = self.affordance[0, idx[ok]].max(axis=-1)
+        return heat
+
+
+def _subsample(xyz, rgb, n: int, seed: int):
+    if len(xyz) <= n:
+        return xyz, rgb
+    keep = np.sort(np.random.default_rng(seed).choice(len(xyz), n, replace=False))
+    return xyz[keep], rgb[keep]
+
+
+# --------------------------------------------------------------------------- region
+def _centres(lo, hi, size: float) -> list[np.ndarray]:
+    """Square centres tiling [lo, hi] (xy) with half-square overlap."""
+    axes = []
+    for a in range(2):
+        ext = hi[a] - lo[a]
+        if ext <= size:
+            axes.append([0.5 * (lo[a] + hi[a])])
+        else:
+            n = int(np.ceil((ext - size) / (0.5 * size))) + 1
+            axes.append(list(np.linspace(lo[a] + 0.5 * size, hi[a] - 0.5 * size, n)))
+    return [np.array([x, y]) for x in axes[0] for y in axes[1]]
+
+
+def _clamp_centre(c, lo, hi, size: float) -> np.ndarray:
+    """Move a square centre so the square stays inside [lo, hi] where the room allows."""
+    half = 0.5 * size
+    out = np.array(c, np.float64)
+    for a in range(2):
+        if hi[a] - lo[a] > size:
+            out[a] = np.clip(out[a], lo[a] + half, hi[a] - half)
+        else:
+            out[a] = 0.5 * (lo[a] + hi[a])
+    return out
+
+
+# --------------------------------------------------------------------------- main
+def generate(
+    scene,
+    text: str = DEFAULT_TEXT,
+    *,
+    object_id: int | None = None,
+    samples: int = 1,
+    seed: int = 0,
+    steps: int = 20,
+    guidance: float = 1.0,
+    checkpoints=None,
+    num_points: int | None = None,
+    fit: bool = True,
+    fit_iters: int = 100,
+    progress: bool = False,
+) -> Generation:
+    """Generate ``samples`` motions of a person doing ``text`` in ``scene``.
+
+    Args:
+      scene: ``"demo"``, a path (mesh / point cloud / ``.npz``) or a ``Scene``.
+      text: the instruction (one or two sentences).
+      object_id: target the object with this instance id instead of finding it from the text.
+      samples: K motions, batched by vmap; seed: the PRNG seed (same seed, same output).
+      steps: DDIM steps of each stage (ADM and AMDM); guidance: classifier-free guidance scale.
+      checkpoints: None (shipped), a folder with ``adm.safetensors`` / ``amdm.safetensors``, or
+        an ``(adm, amdm)`` pair of workdirs / files.
+      num_points: surface samples taken from a mesh (default 100k); point clouds keep theirs.
+      fit: fit SMPL-X bodies (needed by :meth:`Generation.save`); fit_iters: LBFGS iterations.
+      progress: print the stages with their times.
+    Raises:
+      GenerateError: bad text, scene, object id, sizes or checkpoints (the message says the fix).
+    """
+    import jax
+
+    from jaxmotion._jax_setup import enable_compilation_cache
+    from jaxmotion.config import config_from_dict
+    from jaxmotion.data.config import CropConfig
+    from jaxmotion.data.crop import CropSpec, crop_at
+    from jaxmotion.sample import SamplerSpec
+
+    enable_compilation_cache()
+    times: dict[str, float] = {}
+    t0 = time.perf_counter()
+
+    def lap(name):
+        nonlocal t0
+        now = time.perf_counter()
+        times[name] = now - t0
+        t0 = now
+        if progress:
+            print(f"  {name:<10} {times[name]:6.2f} s", flush=True)
+
+    for name, v, lo in (("samples", samples, 1), ("steps", steps, 1)):
+        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo:
+            raise GenerateError(f"{name} must be an integer ≥ {lo}, got {v!r}")
+    if samples > 256:
+        raise GenerateError(f"samples={samples} is more than 256; generate in several calls")
+    adm_file, amdm_file = _resolve_checkpoints(checkpoints)
+    encoder = _text_encoder()
+    text = _check_text(text, encoder)
+    room = _load(scene, num_points)
+    if room.num_points == 0:
+        raise GenerateError("the scene has no points")
+    pipe = _pipeline(str(adm_file), str(amdm_file))
+    mcfg = pipe.amdm_config
+    crop_cfg = config_from_dict(CropConfig, mcfg["crop"])
+    spec = CropSpec(**{**crop_cfg.__dict__, "rotate": False})
+    t_frames, fps = int(mcfg["max_frames"]), 30.0
+    lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
+    emb = encoder([text])
+    key = jax.random.key(int(seed))
+    k_tiles, k_main = jax.random.split(key)
+    sampler = SamplerSpec(method="ddim", steps=int(steps), guidance=float(guidance))
+    lap("load")
+
+    if object_id is not None:
+        obj = _object(room, object_id)
+        centre = _clamp_centre(0.5 * (np.asarray(obj["bbox_min"][:2]) + np.asarray(obj["bbox_max"][:2])),
+                               lo, hi, spec.size)
+    else:
+        tiles = _centres(lo, hi, spec.size)
+        if len(tiles) == 1:
+            centre = tiles[0]
+        else:
+            centre = _affordance_peak(pipe, room, tiles, emb, spec, k_tiles, sampler, seed, lo, hi)
+        lap("region")
+    rng = np.random.default_rng([int(seed), 1])
+    try:
+        pick, pts, shift, rot = crop_at(rng, room.xyz, centre, spec)
+    except ValueError as e:
+        raise GenerateError(f"the scene has no points near the chosen region: {e}") from e
+    colors = (2.0 * room.rgb[pick] - 1.0).astype(np.float32)
+    k = int(samples)
+    tile = lambda x: np.broadcast_to(x, (k, *np.shape(x)))  # noqa: E731
+    res = pipe.sample(k_main, tile(pts), tile(colors), tile(emb[0]), np.ones((k, t_frames), bool),
+                      adm=sampler, amdm=sampler)
+    res = jax.device_get(res)
+    joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
+    aff = np.asarray(res.get("affordance", np.zeros((k, len(pick), 6))), np.float32)
+    lap("sample")
+
+    smplx, err = {}, np.full(k, np.nan, np.float32)
+    if fit:
+        from jaxmotion.body import fit_joints_to_body
+
+        bf = fit_joints_to_body(joints, iters=int(fit_iters), fps=fps)
+        smplx = {n: np.asarray(getattr(bf, n), np.float32)
+                 for n in ("global_orient", "body_pose", "transl", "betas")}
+        err = np.asarray(bf.mean_error, np.float32)
+        lap("fit")
+    return Generation(
+        text=text, scene=room, joints=joints, fps=fps, mask=np.ones(t_frames, bool), smplx=smplx,
+        fit_error=err, crop_xyz=room.xyz[pick].astype(np.float32),
+        crop_rgb=room.rgb[pick].astype(np.float32), affordance=aff, rotation=rot, shift=shift,
+        object_id=None if object_id is None else int(object_id), seed=int(seed), steps=int(steps),
+        timings=times,
+    )
+
+
+def _object(room, object_id) -> dict:
+    if not room.objects:
+        raise GenerateError(f"object {object_id} given but the scene has no object table "
+                            "(a labelled ScanNet-style .ply or a jaxmotion .npz has one); "
+                            "leave out --object to find the target from the text")
+    try:
+        return room.object(int(object_id))
+    except (KeyError, ValueError):
+        valid = ", ".join(f"{o['id']} ({o['category']})" for o in room.objects)
+        raise GenerateError(f"unknown object id {object_id}; this scene's objects: {valid}") from None
+
+
+def _affordance_peak(pipe, room, tiles, emb, spec, key, sampler, seed, lo, hi) -> np.ndarray:
+    """Run the ADM on every tile; return the (clamped) xy of the strongest pelvis peak."""
+    import jax
+
+    from jaxmotion.data.crop import crop_at
+
+    pts, cols, shifts = [], [], []
+    for i, c in enumerate(tiles):
+        try:
+            pick, p, shift, _ = crop_at(np.random.default_rng([int(seed), 2, i]), room.xyz, c, spec)
+        except ValueError:  # a tile outside an L-shaped room
+            continue
+        pts.append(p)
+        cols.append((2.0 * room.rgb[pick] - 1.0).astype(np.float32))
+        shifts.append(shift)
+    b = len(pts)
+    aff = jax.device_get(pipe.sample_affordance(key, np.stack(pts), np.stack(cols),
+                                                np.broadcast_to(emb[0], (b, emb.shape[1])),
+                                                sampler))
+    best, centre = -1.0, tiles[0]
+    for i in range(b):
+        pelvis = np.asarray(aff[i][:, 0])
+        top = np.argsort(pelvis)[-32:]  # the peak as the mean of its 32 strongest points
+        score = float(pelvis[top].mean())
+        if score > best:
+            best, centre = score, pts[i][top, :2].mean(0) + shifts[i][:2]
+    return _clamp_centre(centre, lo, hi, spec.size)
+
+
+def summary(res: Generation) -> str:
+    """A JSON line describing a result (for the command line)."""
+    return json.dumps({"text": res.text, "samples": res.num_samples, "frames": int(res.mask.sum()),
+                       "fps": res.fps, "fit_error_cm": [round(float(e) * 100, 2) for e in res.fit_error],
+                       "timings_s": {k: round(v, 3) for k, v in res.timings.items()}})
+
+
+def _copy_checkpoints(adm_workdir, amdm_workdir, dest, dtype=np.float16) -> tuple[Path, Path]:
+    """Compact two training workdirs' weights for shipping (parameters in ``dtype``;
+    statistics and batch-norm state stay float32)."""
+    from jaxmotion.train.export import compact_weights
+
+    dest = Path(dest)
+    dest.mkdir(parents=True, exist_ok=True)
+    out = []
+    for wd, name in ((adm_workdir, "adm"), (amdm_workdir, "amdm")):
+        out.append(compact_weights(Path(wd) / "model.safetensors", dest / f"{name}.safetensors",
+                                   dtype=dtype))
+    shutil.copy2(Path(amdm_workdir) / "config.json", dest / "amdm_config.json")
+    return out[0], out[1]

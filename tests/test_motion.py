@@ -220,6 +220,22 @@ def test_limits_flag_broken_poses():
     assert joint_angles(pose).shape == (2, 21, 3)
 
 
+@pytest.mark.parametrize("side", ["l", "r"])
+def test_elbow_flexion_beyond_90_degrees_is_read_as_flexion(side):
+    """Flexion is the elbow's first Euler angle: 130° is not misread through gimbal flips."""
+    j = JOINT_NAMES.index(f"{side}_elbow") - 1
+    sign = -1.0 if side == "l" else 1.0  # the left forearm flexes about -y, the right about +y
+    pose = np.zeros((3, 21, 3))
+    pose[0, j] = [0, sign * np.radians(130), 0]  # deep flexion: fine
+    pose[1, j] = [0, sign * np.radians(60), 0]
+    pose[2, j] = [0, -sign * np.radians(40), 0]  # bent backwards 40 deg: broken
+    ang = joint_angles(pose)[:, j]
+    np.testing.assert_allclose(ang[:, 0], sign * np.array([130.0, 60.0, -40.0]), atol=1e-6)
+    np.testing.assert_allclose(ang[:, 1:], 0.0, atol=1e-6)
+    bad = limit_violations(pose)
+    assert bad == [(f"{side}_elbow", 0, *bad[0][2:])] and abs(abs(bad[0][2]) - 40) < 1e-6
+
+
 # ----------------------------------------------------------------------------- actions
 
 ROOM = [(0.0, 0.0, 6.0, 5.0)]

@@ -7,8 +7,12 @@ angle stays well away from gimbal lock:
 
 - legs and spine ``XZY``: flexion about x, then ab/adduction or side bend about
   z, then twist about the bone (y);
-- arms ``ZYX``: raise/lower about z (arms rest horizontally in SMPL-X's T-pose),
-  swing forward about y, then twist about the arm bone (x).
+- collars, shoulders and wrists ``ZYX``: raise/lower about z (arms rest
+  horizontally in SMPL-X's T-pose), swing forward about y, then twist about the
+  arm bone (x);
+- elbows ``YZX``: flexion about y **first** (it reaches 150°, beyond the ±90°
+  a middle Tait–Bryan angle can express), then carrying angle about z, then
+  twist about the forearm (x).
 
 Signs (rest frame): x-rotation > 0 tips the child **forward** for spine, neck,
 head and ankle (plantar flexion) and **backward** for the knee (flexion > 0);
@@ -40,14 +44,15 @@ __all__ = [
 FOOT_ALLOWANCE = 0.025
 ANKLE_ALLOWANCE = 0.07
 
-_LEG, _ARM = "XZY", "ZYX"
+_LEG, _ARM, _ELBOW = "XZY", "ZYX", "YZX"
 ORDERS = {
-    name: (_ARM if any(k in name for k in ("collar", "shoulder", "elbow", "wrist")) else _LEG)
+    name: (_ELBOW if "elbow" in name else
+           _ARM if any(k in name for k in ("collar", "shoulder", "wrist")) else _LEG)
     for name in JOINT_NAMES[1:]
 }
 
-# name: ((x lo, x hi), (second lo, hi), (third lo, hi)) in degrees; "L/R" pairs mirror the
-# second and third angles (negated and swapped for the right side).
+# name: ((first lo, hi), (second lo, hi), (third lo, hi)) in degrees, in the joint's Euler
+# order; "L/R" pairs mirror the y and z angles (negated and swapped for the right side).
 _HALF = {
     "hip": ((-125, 30), (-35, 45), (-45, 45)),
     "knee": ((-8, 150), (-20, 20), (-25, 25)),
@@ -55,7 +60,7 @@ _HALF = {
     "foot": ((-30, 30), (-15, 15), (-15, 15)),
     "collar": ((-20, 20), (-25, 25), (-20, 20)),
     "shoulder": ((-95, 60), (-100, 60), (-80, 80)),
-    "elbow": ((-20, 20), (-150, 8), (-40, 40)),
+    "elbow": ((-150, 8), (-20, 20), (-40, 40)),  # YZX: flexion is y < 0 on the left
     "wrist": ((-40, 40), (-60, 60), (-40, 40)),
 }
 _MID = {

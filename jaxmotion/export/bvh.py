@@ -1,0 +1,230 @@
+"""BVH files of the SMPL-X 22-joint body skeleton (Blender, MotionBuilder, Maya, ...).
+
+Format
+------
+``HIERARCHY``: the pelvis is the ``ROOT`` with six channels ``Xposition
+Yposition Zposition Zrotation Xrotation Yrotation``; the other 21 body joints
+(``jaxmotion.geometry.JOINT_NAMES``) have three, ``Zrotation Xrotation
+Yrotation``, and are listed depth first (children in SMPL-X index order). The
+leaves (feet, head, wrists) end in an ``End Site`` half as long as their bone
+(for display only). ``MOTION``: one line per frame, the channels in the order of
+the hierarchy. Angles are degrees; a joint's local rotation is the intrinsic
+product of its channels in the listed order, ``R = Rz(z) · Rx(x) · Ry(y)``, acting
+on column vectors (the usual BVH reading). Angles are unwrapped over time (no
+±180° jumps) so that players interpolating them stay smooth.
+
+Conventions
+-----------
+- Units: metres (``scale=100`` writes centimetres). Blender imports a metre file
+  at its true size with its default scale 1.0.
+- Rest pose = SMPL-X's: the offsets are the rest joints shaped by ``betas``
+  (``jaxmotion.geometry.rest_joints``), child minus parent, in SMPL-X's canonical
+  frame (y up, the body facing +z, T-pose).
+- **y up**: BVH tools assume y up (Blender's importer by default), so the file's
+  world is jaxmotion's z-up world turned by Rx(−90°), ``(x, y, z) → (x, z, −y)``,
+  folded into the root's channels. Blender's default import (forward −Z, up Y)
+  turns it back, so the motion lands in its original z-up place in the scene.
+- Root: ``OFFSET 0 0 0``; its position channels are the world position of the
+  pelvis, ``Rx(−90°) · (rest[0] + transl)`` (SMPL-X turns the body about the rest
+  pelvis and adds ``transl`` after), and its rotation is ``Rx(−90°) · global_orient``.
+  Other joints carry SMPL-X's local rotations (``body_pose``) unchanged, so the
+  file reproduces ``jaxmotion.geometry.smplx_joints`` exactly (up to the printed
+  precision: 1e-6 degrees and 1e-6 of the length unit).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from jaxmotion._atomic import atomic_open
+from jaxmotion.export._common import Z_UP_TO_Y_UP, check_array, check_fps, smplx_motion
+from jaxmotion.geometry.skeleton import JOINT_NAMES, NUM_BETAS, NUM_JOINTS, PARENTS, rest_joints
+
+__all__ = ["BVH", "read_bvh", "write_bvh"]
+
+_EULER = "ZXY"  # scipy's intrinsic order = the order of the rotation channels
+_ROT_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
+_POS_CHANNELS = ("Xposition", "Yposition", "Zposition")
+
+
+class BVH(NamedTuple):
+    """A parsed BVH file.
+
+    Attributes:
+      names: joint names in file order (End Sites are not joints).
+      parents: ``[J]`` parent index of each joint in file order, −1 for the root.
+      offsets: ``[J, 3]`` offset of each joint from its parent, file units.
+      channels: channel names of each joint, e.g. ``("Zrotation", "Xrotation", "Yrotation")``.
+      frames: ``[T, C]`` channel values per frame, joints in file order.
+      frame_time: seconds per frame.
+    """
+
+    names: tuple[str, ...]
+    parents: np.ndarray
+    offsets: np.ndarray
+    channels: tuple[tuple[str, ...], ...]
+    frames: np.ndarray
+    frame_time: float
+
+
+def write_bvh(
+    path, global_orient, body_pose, transl, betas, fps: float, *, scale: float = 1.0
+) -> Path:
+    """Write one SMPL-X body motion as a BVH file (atomically); see the module docstring.
+
+    Args:
+      path: the ``.bvh`` file to write.
+      global_orient: ``[T, 3]`` axis-angle, radians; body_pose: ``[T, 21, 3]``;
+      transl: ``[T, 3]`` metres, jaxmotion's z-up world.
+      betas: ``[B]`` (B ≤ 10) shape coefficients, or None for the neutral body.
+      fps: frames per second.
+      scale: multiplies every length (1 = metres, 100 = centimetres).
+    Returns:
+      the path written.
+    """
+    go, bp, tr = smplx_motion(global_orient, body_pose, transl)
+    if go.shape[0] != 1:
+        raise ValueError(
+            f"write_bvh writes one motion: global_orient must be [T,3], got {go.shape}"
+        )
+    go, bp, tr = go[0], bp[0], tr[0]
+    fps = check_fps(fps)
+    if not (np.isfinite(scale) and scale > 0):
+        raise ValueError(f"scale must be a positive number, got {scale}")
+    if betas is not None:
+        betas = check_array("betas", betas, (None,))
+        if len(betas) > NUM_BETAS:
+            raise ValueError(f"betas has {len(betas)} coefficients; at most {NUM_BETAS}")
+    rest = np.asarray(rest_joints(betas), np.float64)
+    t = len(go)
+
+    local = Rotation.from_rotvec(np.concatenate([go[:, None], bp], axis=1).reshape(-1, 3))
+    mats = local.as_matrix().reshape(t, NUM_JOINTS, 3, 3)
+    mats[:, 0] = Z_UP_TO_Y_UP @ mats[:, 0]
+    euler = Rotation.from_matrix(mats.reshape(-1, 3, 3)).as_euler(_EULER, degrees=True)
+    euler = np.unwrap(euler.reshape(t, NUM_JOINTS, 3), period=360.0, axis=0)
+    root_pos = (rest[0] + tr) @ Z_UP_TO_Y_UP.T * scale
+
+    lines = ["HIERARCHY"]
+    order: list[int] = []  # joints in file (depth-first) order
+
+    def emit(j: int, pad: str) -> None:
+        order.append(j)
+        offset = np.zeros(3) if j == 0 else (rest[j] - rest[PARENTS[j]]) * scale
+        channels = _POS_CHANNELS + _ROT_CHANNELS if j == 0 else _ROT_CHANNELS
+        lines.extend(
+            [
+                f"{pad}{'ROOT' if j == 0 else 'JOINT'} {JOINT_NAMES[j]}",
+                f"{pad}{{",
+                f"{pad}  OFFSET {offset[0]:.6f} {offset[1]:.6f} {offset[2]:.6f}",
+                f"{pad}  CHANNELS {len(channels)} {' '.join(channels)}",
+            ]
+        )
+        children = [c for c in range(NUM_JOINTS) if PARENTS[c] == j]
+        for c in children:
+            emit(c, pad + "  ")
+        if not children:
+            end = 0.5 * offset
+            lines.extend(
+                [
+                    f"{pad}  End Site",
+                    f"{pad}  {{",
+                    f"{pad}    OFFSET {end[0]:.6f} {end[1]:.6f} {end[2]:.6f}",
+                    f"{pad}  }}",
+                ]
+            )
+        lines.append(f"{pad}}}")
+
+    emit(0, "")
+    values = np.concatenate([root_pos] + [euler[:, j] for j in order], axis=1)
+    lines += ["MOTION", f"Frames: {t}", f"Frame Time: {1.0 / fps:.8f}"]
+    lines += [" ".join(row) for row in np.char.mod("%.6f", values)]
+    with atomic_open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    return Path(path)
+
+
+def read_bvh(path) -> BVH:
+    """Parse a BVH file (any joint names, channel sets and orders; one root).
+
+    Raises ``ValueError`` naming the problem when the file is not a valid BVH.
+    """
+    tokens = Path(path).read_text().split()
+    pos = 0
+
+    def take(expected: str | None = None) -> str:
+        nonlocal pos
+        if pos >= len(tokens):
+            raise ValueError(f"{path}: not a BVH file: it ends early")
+        tok = tokens[pos]
+        pos += 1
+        if expected is not None and tok != expected:
+            raise ValueError(f"{path}: not a BVH file: expected {expected!r}, got {tok!r}")
+        return tok
+
+    names: list[str] = []
+    parents: list[int] = []
+    offsets: list[list[float]] = []
+    channels: list[tuple[str, ...]] = []
+    take("HIERARCHY")
+    stack: list[int] = []  # joint index per open brace, −1 for an End Site
+    opening = None
+    try:
+        while True:
+            tok = take()
+            if tok in ("ROOT", "JOINT"):
+                if (tok == "ROOT") != (not stack):
+                    raise ValueError(f"{path}: not a BVH file: {tok} at the wrong level")
+                names.append(take())
+                parents.append(stack[-1] if stack else -1)
+                offsets.append([0.0, 0.0, 0.0])
+                channels.append(())
+                opening = len(names) - 1
+            elif tok == "End":
+                take("Site")
+                opening = -1
+            elif tok == "{":
+                if opening is None:
+                    raise ValueError(f"{path}: not a BVH file: '{{' without a joint")
+                stack.append(opening)
+                opening = None
+            elif tok == "}":
+                stack.pop()
+                if not stack:
+                    break
+            elif tok == "OFFSET" and stack:
+                values = [float(take()) for _ in range(3)]
+                if stack[-1] >= 0:
+                    offsets[stack[-1]] = values
+            elif tok == "CHANNELS" and stack and stack[-1] >= 0:
+                channels[stack[-1]] = tuple(take() for _ in range(int(take())))
+            else:
+                raise ValueError(f"{path}: not a BVH file: unexpected {tok!r} in the hierarchy")
+        take("MOTION")
+        take("Frames:")
+        num_frames = int(take())
+        take("Frame")
+        take("Time:")
+        frame_time = float(take())
+        values = np.array(tokens[pos:], np.float64)
+    except (IndexError, ValueError) as err:
+        if str(err).startswith(str(path)):
+            raise
+        raise ValueError(f"{path}: not a BVH file: {err}") from err
+    width = sum(len(c) for c in channels)
+    if values.size != num_frames * width:
+        raise ValueError(
+            f"{path}: {values.size} motion values, expected {num_frames} frames × {width} channels"
+        )
+    return BVH(
+        names=tuple(names),
+        parents=np.array(parents, np.int64),
+        offsets=np.array(offsets, np.float64).reshape(-1, 3),
+        channels=tuple(channels),
+        frames=values.reshape(num_frames, width),
+        frame_time=frame_time,
+    )

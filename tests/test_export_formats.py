@@ -1,0 +1,581 @@
+"""Export writers: BVH, GLB, GIF/MP4 and the HTML viewer, each checked by reading the file back."""
+
+import base64
+import importlib.util
+import json
+import re
+import shutil
+import struct
+import subprocess
+from html.parser import HTMLParser
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from jaxmotion.body import body_forward, load_mannequin
+from jaxmotion.export import (
+    read_bvh,
+    render_motion_video,
+    write_bvh,
+    write_glb,
+    write_viewer_html,
+)
+from jaxmotion.geometry import JOINT_NAMES, PARENTS, smplx_joints
+
+Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # Rx(-90°)
+_forward = jax.jit(body_forward, static_argnames="normals")
+_joints = jax.jit(smplx_joints)
+
+
+def _params(seed, t, k=None, scale=0.5):
+    rng = np.random.default_rng(seed)
+    lead = (t,) if k is None else (k, t)
+    return (
+        rng.normal(size=(*lead, 3)),
+        rng.normal(size=(*lead, 21, 3)) * scale,
+        rng.normal(size=(*lead, 3)),
+    )
+
+
+def _scene(seed, n):
+    rng = np.random.default_rng(seed)
+    return rng.uniform([-2, -2, 0], [2, 2, 2.5], size=(n, 3)), rng.uniform(size=(n, 3))
+
+
+def _no_temp_files(folder: Path):
+    assert not [p.name for p in folder.iterdir() if p.name.endswith(".tmp")]
+
+
+# --------------------------------------------------------------------------- BVH
+
+
+def _bvh_world_joints(bvh) -> np.ndarray:
+    """Forward kinematics of a parsed BVH: ``[T, J, 3]`` in the file's frame and units."""
+    t, num = len(bvh.frames), len(bvh.names)
+    pos, rot = np.zeros((t, num, 3)), np.zeros((t, num, 3, 3))
+    col = 0
+    for j in range(num):
+        ch = bvh.channels[j]
+        values = bvh.frames[:, col : col + len(ch)]
+        col += len(ch)
+        local_pos = np.broadcast_to(bvh.offsets[j], (t, 3)).copy()
+        order, angles = "", []
+        for name, v in zip(ch, values.T):
+            if name.endswith("position"):
+                local_pos[:, "XYZ".index(name[0])] += v
+            else:
+                order += name[0]
+                angles.append(v)
+        local_rot = Rotation.from_euler(order, np.stack(angles, 1), degrees=True).as_matrix()
+        p = bvh.parents[j]
+        if p < 0:
+            pos[:, j], rot[:, j] = local_pos, local_rot
+        else:
+            pos[:, j] = pos[:, p] + np.einsum("tab,tb->ta", rot[:, p], local_pos)
+            rot[:, j] = rot[:, p] @ local_rot
+    return pos
+
+
+@pytest.mark.parametrize("with_betas", [False, True])
+def test_bvh_round_trip_reproduces_smplx_joints(tmp_path, with_betas):
+    go, bp, tr = _params(0, 7, scale=0.8)
+    betas = np.random.default_rng(1).normal(size=10) if with_betas else None
+    path = write_bvh(tmp_path / "m.bvh", go, bp, tr, betas, 30.0)
+    bvh = read_bvh(path)
+    assert sorted(bvh.names) == sorted(JOINT_NAMES)
+    order = [bvh.names.index(n) for n in JOINT_NAMES]
+    assert [bvh.names[p] if p >= 0 else None for p in bvh.parents[order]] == [
+        JOINT_NAMES[p] if p >= 0 else None for p in PARENTS
+    ]
+    assert bvh.frames.shape == (7, 6 + 21 * 3)
+    assert bvh.frame_time == pytest.approx(1 / 30)
+    world = _bvh_world_joints(bvh)[:, order] @ Y_UP  # y-up -> z-up (Y_UP is orthogonal)
+    expected = np.asarray(_joints(go, bp, tr, betas), np.float64)
+    np.testing.assert_allclose(world, expected, atol=1e-4)
+
+
+def test_bvh_scale_and_y_up(tmp_path):
+    go, bp, tr = _params(2, 3)
+    m = read_bvh(write_bvh(tmp_path / "m.bvh", go, bp, tr, None, 20))
+    cm = read_bvh(write_bvh(tmp_path / "cm.bvh", go, bp, tr, None, 20, scale=100))
+    np.testing.assert_allclose(cm.offsets, 100 * m.offsets, atol=1e-4)
+    np.testing.assert_allclose(_bvh_world_joints(cm), 100 * _bvh_world_joints(m), atol=1e-2)
+    # the neutral rest pose stands along +y in the file: head above the pelvis
+    head = m.offsets[m.names.index("head")]
+    assert head[1] > 0
+
+
+def test_bvh_rejects_bad_input(tmp_path):
+    go, bp, tr = _params(3, 4)
+    path = tmp_path / "m.bvh"
+    path.write_text("old")
+    with pytest.raises(ValueError, match="body_pose"):
+        write_bvh(path, go, bp[:, :20], tr, None, 30)
+    with pytest.raises(ValueError, match="fps"):
+        write_bvh(path, go, bp, tr, None, 0)
+    with pytest.raises(ValueError, match="non-finite"):
+        write_bvh(path, go, bp, np.full_like(tr, np.nan), None, 30)
+    with pytest.raises(ValueError, match="one motion"):
+        write_bvh(path, np.stack([go, go]), np.stack([bp, bp]), np.stack([tr, tr]), None, 30)
+    assert path.read_text() == "old"
+    _no_temp_files(tmp_path)
+    (tmp_path / "bad.bvh").write_text("HIERARCHY\nROOT a\n{\n OFFSET 0 0\n")
+    with pytest.raises(ValueError, match="not a BVH"):
+        read_bvh(tmp_path / "bad.bvh")
+
+
+# --------------------------------------------------------------------------- GLB
+
+
+def _read_glb(path):
+    raw = Path(path).read_bytes()
+    magic, version, length = struct.unpack_from("<III", raw)
+    assert (magic, version, length) == (0x46546C67, 2, len(raw))
+    json_len, json_type = struct.unpack_from("<II", raw, 12)
+    bin_len, bin_type = struct.unpack_from("<II", raw, 20 + json_len)
+    assert (json_type, bin_type) == (0x4E4F534A, 0x004E4942) and json_len % 4 == 0
+    gltf = json.loads(raw[20 : 20 + json_len])
+    binary = raw[28 + json_len : 28 + json_len + bin_len]
+    assert gltf["buffers"][0]["byteLength"] == bin_len
+    return gltf, binary
+
+
+def _accessor(gltf, binary, index):
+    acc = gltf["accessors"][index]
+    view = gltf["bufferViews"][acc["bufferView"]]
+    assert view["byteOffset"] % 4 == 0
+    dtype = {5126: "<f4", 5125: "<u4", 5123: "<u2", 5121: "u1"}[acc["componentType"]]
+    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}[acc["type"]]
+    a = np.frombuffer(binary, dtype, acc["count"] * width, view["byteOffset"])
+    return (a.reshape(acc["count"], width) if width > 1 else a).astype(np.float64)
+
+
+def _world_matrices(gltf, binary, frame):
+    """Every node's world matrix with the animation sampled at keyframe ``frame``."""
+    nodes = [dict(n) for n in gltf["nodes"]]
+    for anim in gltf["animations"]:
+        for ch in anim["channels"]:
+            sampler = anim["samplers"][ch["sampler"]]
+            nodes[ch["target"]["node"]][ch["target"]["path"]] = _accessor(
+                gltf, binary, sampler["output"]
+            )[frame]
+    parent = {c: i for i, n in enumerate(nodes) for c in n.get("children", [])}
+    world = {}
+
+    def matrix(i):
+        if i not in world:
+            n = nodes[i]
+            m = np.eye(4)
+            m[:3, :3] = Rotation.from_quat(n.get("rotation", [0, 0, 0, 1])).as_matrix()
+            m[:3, :3] *= np.asarray(n.get("scale", [1, 1, 1]))
+            m[:3, 3] = n.get("translation", [0, 0, 0])
+            world[i] = m if i not in parent else matrix(parent[i]) @ m
+        return world[i]
+
+    return [matrix(i) for i in range(len(nodes))], parent
+
+
+def _skinned_vertices(gltf, binary, frame):
+    """glTF skinning of every skinned mesh node: ``{node: [V, 3]}`` in glTF's world."""
+    world, parent = _world_matrices(gltf, binary, frame)
+    out = {}
+    for i, node in enumerate(gltf["nodes"]):
+        if "skin" not in node:
+            continue
+        assert i not in parent and not {"translation", "rotation", "matrix"} & set(node)
+        skin = gltf["skins"][node["skin"]]
+        prim = gltf["meshes"][node["mesh"]]["primitives"][0]
+        ibm = _accessor(gltf, binary, skin["inverseBindMatrices"]).reshape(-1, 4, 4)
+        joint_mats = np.stack([world[j] for j in skin["joints"]]) @ ibm.transpose(0, 2, 1)
+        v = _accessor(gltf, binary, prim["attributes"]["POSITION"])
+        idx = _accessor(gltf, binary, prim["attributes"]["JOINTS_0"]).astype(int)
+        w = _accessor(gltf, binary, prim["attributes"]["WEIGHTS_0"])
+        np.testing.assert_allclose(w.sum(1), 1.0, atol=1e-6)
+        blended = np.einsum("vk,vkab->vab", w, joint_mats[idx])
+        out[i] = np.einsum("vab,vb->va", blended[:, :3, :3], v) + blended[:, :3, 3]
+    return out
+
+
+def test_glb_skin_and_animation_match_body_forward(tmp_path):
+    import trimesh
+
+    k, t, fps, spacing = 2, 4, 20.0, 1.5
+    go, bp, tr = _params(4, t, k=k, scale=0.4)
+    betas = np.random.default_rng(5).normal(size=10) * 0.5
+    xyz, rgb = _scene(6, 300)
+    path = write_glb(
+        tmp_path / "m.glb",
+        global_orient=go,
+        body_pose=bp,
+        transl=tr,
+        fps=fps,
+        betas=betas,
+        scene_xyz=xyz,
+        scene_rgb=rgb,
+        spacing=spacing,
+    )
+    loaded = trimesh.load(path)
+    assert {"body0", "body1", "scene"} <= set(loaded.geometry)
+    assert len(loaded.geometry["scene"].vertices) == 300
+
+    gltf, binary = _read_glb(path)
+    assert gltf["asset"]["version"] == "2.0"
+    assert len(gltf["skins"]) == k and len(gltf["skins"][0]["joints"]) == 54
+    (anim,) = gltf["animations"]
+    assert len(anim["channels"]) == k * 23
+    assert {s["interpolation"] for s in anim["samplers"]} == {"LINEAR"}
+    times = _accessor(gltf, binary, anim["samplers"][0]["input"])
+    np.testing.assert_allclose(times, np.arange(t) / fps, atol=1e-6)
+    scene_node = next(n for n in gltf["nodes"] if n.get("name") == "scene")
+    scene_prim = gltf["meshes"][scene_node["mesh"]]["primitives"][0]
+    assert scene_prim["mode"] == 0
+    colours = _accessor(gltf, binary, scene_prim["attributes"]["COLOR_0"])[:, :3] / 255
+    np.testing.assert_allclose(colours, rgb, atol=0.5 / 255 + 1e-9)
+
+    model = load_mannequin(betas)
+    expected = np.asarray(_forward(model, go, bp, tr, betas, normals=False).vertices, np.float64)
+    body_nodes = [i for i, n in enumerate(gltf["nodes"]) if "skin" in n]
+    for frame in (0, 2, 3):
+        skinned = _skinned_vertices(gltf, binary, frame)
+        for s, node in enumerate(body_nodes):
+            want = (expected[s, frame] + [s * spacing, 0, 0]) @ Y_UP.T
+            err = np.abs(skinned[node] - want).max()
+            assert err < 1e-3, (frame, s, err)
+
+
+def test_glb_single_motion_with_scene_mesh(tmp_path):
+    import trimesh
+
+    go, bp, tr = _params(7, 3)
+    xyz = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    path = write_glb(
+        tmp_path / "m.glb",
+        global_orient=go,
+        body_pose=bp,
+        transl=tr,
+        fps=30,
+        scene_xyz=xyz,
+        scene_faces=faces,
+    )
+    scene = trimesh.load(path).geometry["scene"]
+    assert isinstance(scene, trimesh.Trimesh) and len(scene.faces) == 4
+    gltf, binary = _read_glb(path)
+    assert len(gltf["skins"]) == 1
+    expected = np.asarray(_forward(load_mannequin(), go, bp, tr, normals=False).vertices)
+    (skinned,) = _skinned_vertices(gltf, binary, 2).values()
+    assert np.abs(skinned - expected[2] @ Y_UP.T).max() < 1e-3
+    with pytest.raises(ValueError, match="scene_faces"):
+        write_glb(
+            tmp_path / "m.glb",
+            global_orient=go,
+            body_pose=bp,
+            transl=tr,
+            fps=30,
+            scene_xyz=xyz,
+            scene_faces=faces + 4,
+        )
+    with pytest.raises(ValueError, match="transl"):
+        write_glb(tmp_path / "m.glb", global_orient=go, body_pose=bp, transl=tr[:2], fps=30)
+    with pytest.raises(ValueError, match="scene_rgb"):
+        write_glb(
+            tmp_path / "m.glb",
+            global_orient=go,
+            body_pose=bp,
+            transl=tr,
+            fps=30,
+            scene_xyz=xyz,
+            scene_rgb=np.full((4, 3), 255.0),
+        )
+    assert len(trimesh.load(path).geometry) == 2  # the earlier file is intact
+    _no_temp_files(tmp_path)
+
+
+# --------------------------------------------------------------------------- video
+
+
+def _motion_joints(seed, k, t):
+    rng = np.random.default_rng(seed)
+    return rng.normal(size=(k, t, 22, 3)) * 0.3 + [0.0, 0.0, 1.0]
+
+
+def test_gif_frames_size_and_subsampling(tmp_path):
+    import imageio.v3 as iio
+
+    xyz, rgb = _scene(8, 500)
+    joints = _motion_joints(9, 2, 7)
+    # a tetrahedron per sample and frame stands in for the body mesh
+    verts = joints[:, :, :4] + [0.1, 0.0, 0.0]
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    path = render_motion_video(
+        tmp_path / "m.gif",
+        xyz,
+        rgb,
+        joints,
+        30,
+        vertices=verts,
+        faces=faces,
+        affordance=np.linspace(0, 1, 500),
+        text="walk",
+        size=(96, 64),
+        max_frames=3,
+    )
+    frames = iio.imread(path)
+    assert frames.shape == (3, 64, 96, 3)  # 7 frames at stride 3: 0, 3, 6
+    assert frames.std() > 0
+    meta = iio.immeta(path)
+    assert meta["duration"] == pytest.approx(100, abs=10)  # 3 frames of 1/10 s
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("imageio_ffmpeg") is None, reason="imageio-ffmpeg not installed"
+)
+def test_mp4_frames_and_size(tmp_path):
+    import imageio.v3 as iio
+
+    xyz, rgb = _scene(10, 300)
+    path = render_motion_video(
+        tmp_path / "m.mp4", xyz, rgb, _motion_joints(11, 1, 5)[0], 20, size=(64, 48)
+    )
+    frames = iio.imread(path, plugin="FFMPEG")
+    assert frames.shape == (5, 48, 64, 3)
+
+
+def test_video_rejects_bad_requests(tmp_path, monkeypatch):
+    xyz, rgb = _scene(12, 50)
+    joints = _motion_joints(13, 1, 2)
+    with pytest.raises(ValueError, match=".gif or .mp4"):
+        render_motion_video(tmp_path / "m.avi", xyz, rgb, joints, 30)
+    with pytest.raises(ValueError, match="joints"):
+        render_motion_video(tmp_path / "m.gif", xyz, rgb, joints[..., :2], 30)
+    with pytest.raises(ValueError, match="affordance"):
+        render_motion_video(tmp_path / "m.gif", xyz, rgb, joints, 30, affordance=np.full(50, 2.0))
+    with pytest.raises(ValueError, match="even"):
+        render_motion_video(tmp_path / "m.mp4", xyz, rgb, joints, 30, size=(65, 48))
+    find_spec = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util,
+        "find_spec",
+        lambda name, *a: None if name == "imageio_ffmpeg" else find_spec(name, *a),
+    )
+    with pytest.raises(ValueError, match="pip install"):
+        render_motion_video(tmp_path / "m.mp4", xyz, rgb, joints, 30)
+    assert not list(tmp_path.iterdir())
+
+
+# --------------------------------------------------------------------------- HTML viewer
+
+
+class _Tags(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.tags, self.attrs = [], []
+
+    def handle_starttag(self, tag, attrs):
+        self.tags.append(tag)
+        self.attrs += attrs
+
+
+def _payload(page: str) -> dict:
+    m = re.search(r'<script type="application/json" id="jm-data">(.*?)</script>', page, re.DOTALL)
+    return json.loads(m.group(1))
+
+
+def _decode(e: dict) -> np.ndarray:
+    a = np.frombuffer(base64.b64decode(e["b64"]), np.dtype(e["dtype"]).newbyteorder("<"))
+    a = a.reshape(e["shape"]).astype(np.float64)
+    if "offset" in e:
+        a = np.asarray(e["offset"]) + a * np.asarray(e["step"])
+    return a
+
+
+def test_viewer_page_is_self_contained_and_embeds_the_data(tmp_path):
+    xyz, rgb = _scene(14, 400)
+    joints = _motion_joints(15, 2, 5)
+    aff = np.random.default_rng(16).uniform(size=(400, 6))
+    text = 'sit on the <b>chair</b> & "rest" </script>'
+    path = write_viewer_html(
+        tmp_path / "v.html",
+        scene_xyz=xyz,
+        scene_rgb=rgb,
+        joints=joints,
+        fps=30,
+        text=text,
+        affordance=aff,
+    )
+    page = path.read_text()
+    parser = _Tags()
+    parser.feed(page)
+    parser.close()
+    assert {"html", "canvas", "script"} <= set(parser.tags)
+    assert not [v for k, v in parser.attrs if k in ("src", "href")]
+    assert "http://" not in page and "https://" not in page
+    assert page.count("</script>") == 2  # the text cannot close the data element
+    data = _payload(page)
+    assert data["text"] == text and data["num_samples"] == 2 and data["num_frames"] == 5
+    step = np.asarray(data["scene"]["xyz"]["step"])
+    np.testing.assert_allclose(_decode(data["scene"]["xyz"]), xyz, atol=float(step.max()))
+    np.testing.assert_allclose(_decode(data["scene"]["rgb"]) / 255, rgb, atol=0.5 / 255 + 1e-9)
+    np.testing.assert_array_equal(_decode(data["joints"]), joints.astype(np.float32))
+    affordance = _decode(data["affordance"]["values"]) / 255
+    np.testing.assert_allclose(affordance, aff, atol=0.5 / 255 + 1e-9)
+    assert data["affordance"]["channels"] == [
+        "pelvis",
+        "l_foot",
+        "r_foot",
+        "neck",
+        "l_wrist",
+        "r_wrist",
+    ]
+
+
+def _body_page(tmp_path, k=1, t=3):
+    go, bp, tr = _params(17, t, k=k, scale=0.2)
+    model = load_mannequin()
+    out = _forward(model, go, bp, tr, normals=False)
+    xyz, rgb = _scene(18, 2000)
+    vertices = np.asarray(out.vertices, np.float64)
+    path = write_viewer_html(
+        tmp_path / "b.html",
+        scene_xyz=xyz,
+        scene_rgb=rgb,
+        joints=np.asarray(out.joints),
+        fps=30,
+        text="walk",
+        vertices=vertices,
+        faces=np.asarray(model.faces),
+        affordance=np.linspace(0, 1, 2000),
+        max_points=500,
+    )
+    return path, vertices
+
+
+def test_viewer_body_is_decimated_and_scene_subsampled(tmp_path):
+    path, vertices = _body_page(tmp_path, k=2)
+    data = _payload(path.read_text())
+    assert data["scene"]["xyz"]["shape"] == [500, 3]
+    assert data["affordance"]["channels"] == ["map"]
+    pos = _decode(data["body"]["positions"])
+    faces = _decode(data["body"]["faces"]).astype(int)
+    assert pos.shape[:2] == (2, 3) and 500 < pos.shape[2] < vertices.shape[2] // 4
+    assert faces.min() == 0 and faces.max() == pos.shape[2] - 1
+    # every cluster sits on the body: near a vertex of the same sample and frame
+    from scipy.spatial import cKDTree
+
+    for s in range(2):
+        dist, _ = cKDTree(vertices[s, 1]).query(pos[s, 1])
+        assert dist.max() < 0.04
+    with pytest.raises(ValueError, match="vertices and faces"):
+        write_viewer_html(
+            tmp_path / "x.html",
+            scene_xyz=vertices[0, 0],
+            scene_rgb=None,
+            joints=np.zeros((1, 22, 3)),
+            fps=30,
+            vertices=vertices,
+        )
+    assert not (tmp_path / "x.html").exists()
+
+
+# JS harness: runs the page's script in Node with a stub DOM and a stub WebGL2 context,
+# fires its controls, and fails on any exception (syntax, reference or type errors).
+_NODE_HARNESS = r"""
+const fs = require("fs");
+const page = fs.readFileSync(process.argv[2], "utf8");
+const blocks = [...page.matchAll(/<script([^>]*)>([\s\S]*?)<\/script>/g)];
+const dataText = blocks.find((b) => b[1].includes("jm-data"))[2];
+const code = blocks.find((b) => !b[1].includes("application/json"))[2];
+const calls = {};
+const gl = new Proxy({}, { get(_, prop) {
+  if (typeof prop === "string" && /^[A-Z0-9_]+$/.test(prop)) return 1;
+  return (...args) => { calls[prop] = (calls[prop] || 0) + 1;
+    return prop.startsWith("get") && prop.endsWith("Parameter") ? true : {}; };
+} });
+const listeners = {};
+function element(id) {
+  return { id, style: {}, textContent: "", innerHTML: "", value: "0", checked: true,
+    clientWidth: 640, clientHeight: 480, width: 0, height: 0, max: "0",
+    addEventListener(type, fn) { listeners[id + ":" + type] = fn; },
+    appendChild() {}, setPointerCapture() {},
+    getContext(kind) { return kind === "webgl2" ? gl : null; } };
+}
+const elements = {};
+globalThis.document = {
+  getElementById(id) { return id === "jm-data" ? { textContent: dataText } : (elements[id] ||= element(id)); },
+  createElement() { return element("new"); }, createTextNode() { return {}; },
+};
+let queue = [];
+globalThis.window = { devicePixelRatio: 1, addEventListener(type, fn) { listeners["window:" + type] = fn; } };
+globalThis.requestAnimationFrame = (cb) => queue.push(cb);
+function flush(rounds) {
+  for (let i = 0; i < rounds && queue.length; i++) {
+    const q = queue; queue = []; q.forEach((cb) => cb(performance.now() + 1000 * i));
+  }
+}
+new Function(code)();
+flush(3);
+const ev = { clientX: 10, clientY: 10, button: 0, shiftKey: false, pointerId: 1, deltaY: 100,
+  preventDefault() {} };
+if (listeners["colouring:change"]) { elements.colouring.value = "max"; listeners["colouring:change"](); }
+listeners["view:pointerdown"](ev);
+listeners["view:pointermove"](Object.assign({}, ev, { clientX: 30 }));
+listeners["view:pointerup"](ev);
+listeners["view:pointerdown"](Object.assign({}, ev, { button: 2 }));
+listeners["view:pointermove"](Object.assign({}, ev, { clientY: 40 }));
+listeners["view:wheel"](ev);
+listeners["view:dblclick"](ev);
+listeners["play:click"]();
+flush(5);
+elements.time.value = "1";
+listeners["time:input"]();
+flush(3);
+console.log(JSON.stringify({ viewer: window.jaxmotionViewer, calls }));
+"""
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="Node.js not installed")
+def test_viewer_script_runs_in_node_with_stub_webgl(tmp_path):
+    path, _ = _body_page(tmp_path, k=1, t=3)
+    harness = tmp_path / "harness.js"
+    harness.write_text(_NODE_HARNESS)
+    run = subprocess.run(
+        ["node", str(harness), str(path)], check=False, capture_output=True, text=True, timeout=60
+    )
+    assert run.returncode == 0, run.stderr
+    result = json.loads(run.stdout)
+    assert result["viewer"] == {"ready": True, "frame": 1, "frames": 3, "samples": 1}
+    assert result["calls"]["drawElements"] >= 1 and result["calls"]["drawArrays"] >= 4
+
+
+_SOFTWARE_GL = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+
+
+def test_viewer_renders_in_headless_chromium(tmp_path):
+    sync_api = pytest.importorskip("playwright.sync_api")
+    path, _ = _body_page(tmp_path, k=2, t=3)
+    with sync_api.sync_playwright() as p:
+        browser, failures = None, []
+        # playwright's own chromium build, else a system one (Debian's package: /usr/bin/chromium)
+        for executable in (None, shutil.which("chromium")):
+            try:
+                browser = p.chromium.launch(executable_path=executable, args=_SOFTWARE_GL)
+                break
+            except sync_api.Error as err:
+                failures.append(str(err).splitlines()[0])
+        if browser is None:
+            pytest.skip(f"no chromium that playwright can launch: {failures}")
+        page = browser.new_page()
+        errors = []
+        page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(path.as_uri())
+        page.wait_for_function(
+            "window.jaxmotionViewer && window.jaxmotionViewer.ready", timeout=20_000
+        )
+        page.click("#play")
+        page.wait_for_timeout(300)
+        browser.close()
+    assert not errors

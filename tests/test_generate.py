@@ -1,0 +1,144 @@
+"""`jaxmotion generate` and `jaxmotion.generate`: inputs, errors, outputs, determinism.
+
+Uses the tiny trained runs (conftest ``tiny_runs``) so it does not depend on the shipped
+checkpoints; ``test_shipped_default`` runs the real default when it is installed."""
+
+import json
+
+import numpy as np
+import pytest
+
+import jaxmotion
+from jaxmotion.generation import GenerateError, default_checkpoints
+
+FAST = dict(steps=2, fit_iters=5)
+
+
+@pytest.fixture(scope="module")
+def ckpt(tiny_runs):
+    root, _ = tiny_runs
+    return (str(root / "adm"), str(root / "amdm"))
+
+
+@pytest.fixture(scope="module")
+def result(ckpt):
+    return jaxmotion.generate("demo", "sit on the chair next to the table", samples=2, seed=3,
+                              checkpoints=ckpt, **FAST)
+
+
+def test_shapes_frame_and_fit(result):
+    r = result
+    assert r.joints.shape == (2, 120, 22, 3) and np.isfinite(r.joints).all()
+    assert r.smplx["body_pose"].shape == (2, 120, 21, 3) and r.smplx["betas"].shape == (2, 10)
+    assert r.affordance.shape[0] == 2 and r.affordance.shape[2] == 6
+    # the crop frame maps back onto the scene: crop points are scene points
+    lo, hi = r.scene.xyz.min(0), r.scene.xyz.max(0)
+    assert np.all(r.crop_xyz >= lo - 1e-5) and np.all(r.crop_xyz <= hi + 1e-5)
+    assert r.fit_error.shape == (2,) and np.isfinite(r.fit_error).all()
+    assert "sample" in r.timings and "region" in r.timings  # the demo room needs tiling
+
+
+def test_same_seed_same_output_and_seeds_differ(result, ckpt):
+    again = jaxmotion.generate("demo", "sit on the chair next to the table", samples=2, seed=3,
+                               checkpoints=ckpt, **FAST)
+    np.testing.assert_array_equal(again.joints, result.joints)
+    assert not np.array_equal(result.joints[0], result.joints[1])
+
+
+def test_object_id_centres_the_crop_on_the_object(ckpt):
+    scene = jaxmotion.generation.demo_scene()
+    chair = next(o for o in scene.objects if o["category"] == "chair")
+    r = jaxmotion.generate(scene, "sit down", object_id=chair["id"], checkpoints=ckpt, fit=False,
+                           **FAST)
+    assert r.object_id == chair["id"] and not r.smplx
+    centre = 0.5 * (np.asarray(chair["bbox_min"][:2]) + np.asarray(chair["bbox_max"][:2]))
+    assert np.linalg.norm(r.crop_xyz[:, :2].mean(0) - centre) < 1.5
+    with pytest.raises(GenerateError, match="BVH and GLB need it"):
+        r.save("unused")
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(text=""), "text is empty"),
+    (dict(text="   "), "text is empty"),
+    (dict(text="walk " * 400), "too long"),
+    (dict(object_id=999), "unknown object id 999"),
+    (dict(samples=0), "samples must be"),
+    (dict(steps=0), "steps must be"),
+    (dict(scene="no/such/room.ply"), "no such file"),
+])
+def test_bad_input_is_a_clear_error(ckpt, kwargs, match):
+    args = {"scene": "demo", "text": "sit on the chair", **FAST, **kwargs}
+    with pytest.raises(GenerateError, match=match):
+        jaxmotion.generate(args.pop("scene"), args.pop("text"), checkpoints=ckpt, **args)
+
+
+def test_checkpoints_that_do_not_match(ckpt, tmp_path):
+    with pytest.raises(GenerateError, match="no such checkpoint"):
+        jaxmotion.generate("demo", "sit", checkpoints=tmp_path, **FAST)
+    with pytest.raises(GenerateError, match="do not load together|not an AMDM"):
+        jaxmotion.generate("demo", "sit", checkpoints=(ckpt[0], ckpt[0]), **FAST)
+
+
+def test_empty_scene_is_an_error(ckpt, tmp_path):
+    p = tmp_path / "empty.ply"
+    p.write_text("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
+                 "property float z\nend_header\n")
+    with pytest.raises(GenerateError):
+        jaxmotion.generate(p, "sit", checkpoints=ckpt, **FAST)
+
+
+def test_save_writes_every_output_that_readers_open(result, tmp_path):
+    import imageio.v3 as iio
+    import trimesh
+
+    from jaxmotion.export import read_bvh
+
+    files = result.save(tmp_path / "out")
+    assert sorted(files) == sorted(["motion.npz", "motion.bvh", "motion.glb", "motion.gif",
+                                    "viewer.html"])
+    d = np.load(files["motion.npz"])
+    assert d["joints"].shape == (2, 120, 22, 3) and float(d["fps"]) == 30.0
+    assert str(d["text"]) == result.text and d["body_pose"].shape == (2, 120, 21, 3)
+    assert d["scene_rotation"].shape == (3, 3) and d["scene_shift"].shape == (3,)
+    bvh = read_bvh(files["motion.bvh"])
+    assert len(bvh.names) == 22 and bvh.frames.shape[0] == 120
+    assert len(trimesh.load(files["motion.glb"]).geometry) >= 1
+    assert iio.imread(files["motion.gif"], index=None).shape[0] > 1
+    html = files["viewer.html"].read_text()
+    assert "https://" not in html and "http://" not in html
+    assert not [p for p in (tmp_path / "out").iterdir() if p.name.startswith(".")]
+
+
+def test_save_leaves_nothing_half_written(result, tmp_path, monkeypatch):
+    from jaxmotion import export
+
+    def boom(*a, **k):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(export, "write_glb", boom)
+    with pytest.raises(OSError, match="disk full"):
+        result.save(tmp_path / "out")
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
+    from jaxmotion.cli import main
+
+    assert main(["generate", "--scene", "missing.ply", "--out", str(tmp_path / "x"),
+                 "--checkpoints", *ckpt]) == 2
+    assert "no such file" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+    out = tmp_path / "ok"
+    assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
+                 "--out", str(out), "--checkpoints", *ckpt]) == 0
+    line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert line["samples"] == 1 and line["frames"] == 120
+    assert (out / "motion.bvh").is_file() and not (out / "motion.gif").exists()
+
+
+@pytest.mark.skipif(not all(p.is_file() for p in default_checkpoints()),
+                    reason="the default checkpoints are not installed")
+def test_shipped_default():
+    r = jaxmotion.generate("demo", samples=1, steps=10, fit=False)
+    assert r.joints.shape[1:] == (120, 22, 3) and np.isfinite(r.joints).all()
+    assert r.joints[..., 2].min() > -0.1  # nobody sinks into the floor

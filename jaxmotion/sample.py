@@ -78,7 +78,7 @@ class AffordancePipeline:
         from jaxmotion.config import config_from_dict
         from jaxmotion.diffusion import make_schedule
         from jaxmotion.models import AMDM, AMDMConfig
-        from jaxmotion.train.export import apply_weights, load_weights
+        from jaxmotion.train.export import abstract_module, apply_weights, load_weights
         from jaxmotion.train.tasks import load_adm
 
         adm_net, adm_sched, adm_stats = load_adm(adm_file)
@@ -92,7 +92,8 @@ class AffordancePipeline:
             raise ValueError(f"{m_src} expects {a_dim} affordance channels but the ADM "
                              f"{adm_file} predicts {adm_stats[0].shape[0]}: use checkpoints "
                              "trained together")
-        amdm = AMDM(config_from_dict(AMDMConfig, mcfg["model"]), rngs=nnx.Rngs(0))
+        amdm = abstract_module(lambda: AMDM(config_from_dict(AMDMConfig, mcfg["model"]),
+                                            rngs=nnx.Rngs(0)))
         apply_weights(amdm, mt, prefix="amdm/", source=str(m_src))
         amdm.eval()
         amdm_stats = tuple(_tensor(mt, f"stats/{n}", m_src) for n in

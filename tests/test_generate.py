@@ -26,6 +26,16 @@ def result(ckpt):
                               checkpoints=ckpt, **FAST)
 
 
+def test_shipped_demo_room_is_the_seeded_room():
+    from jaxmotion.generation import build_demo_scene, demo_scene
+
+    a, b = demo_scene(), build_demo_scene()
+    for k in ("xyz", "rgb", "normal", "semantic", "instance"):
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k), err_msg=k)
+    assert a.objects == b.objects and a.name == "demo"
+    assert {"chair", "table"} <= {o["category"] for o in a.objects}
+
+
 def test_shapes_frame_and_fit(result):
     r = result
     assert r.joints.shape == (2, 120, 22, 3) and np.isfinite(r.joints).all()

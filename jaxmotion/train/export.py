@@ -124,3 +124,27 @@ def compact_weights(src, dst, *, dtype=np.float16) -> Path:
     with atomic_open(dst, "wb") as f:
         f.write(data)
     return Path(dst)
+
+
+def abstract_module(ctor):
+    """``ctor()`` without running its initialisers (``nnx.eval_shape``), for loading weights.
+
+    Building a model eagerly compiles one small XLA program per initialiser shape (seconds
+    for a Point Transformer); an abstract build costs nothing. Fill its parameters and batch
+    statistics with :func:`apply_weights`; any other state (dropout RNG streams, counters) is
+    given concrete placeholders here.
+    """
+    import jax.numpy as jnp
+
+    module = nnx.eval_shape(ctor)
+
+    def fill(x):
+        if not isinstance(x, jax.ShapeDtypeStruct):
+            return x
+        if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
+            return jax.random.split(jax.random.key(0), x.shape) if x.shape else jax.random.key(0)
+        return jnp.zeros(x.shape, x.dtype)
+
+    rest = nnx.state(module, nnx.Not(nnx.Any(nnx.Param, nnx.BatchStat)))
+    nnx.update(module, jax.tree.map(fill, rest))
+    return module

@@ -127,14 +127,14 @@ def load_backbone(workdir=None, *, tensors=None, model_config=None, prefix="", s
     """The frozen segmentation backbone, from ``<workdir>/model.safetensors`` or from tensors
     and a model config (as embedded in an ADM weights file)."""
     from jaxmotion.models import PointTransformerConfig, PointTransformerSeg
-    from jaxmotion.train.export import apply_weights, load_weights
+    from jaxmotion.train.export import abstract_module, apply_weights, load_weights
 
     if workdir is not None:
         source = f"{workdir}/model.safetensors"
         tensors, saved = load_weights(Path(workdir) / "model.safetensors")
         model_config = saved["model"]
     pt_cfg = config_from_dict(PointTransformerConfig, model_config)
-    net = PointTransformerSeg(pt_cfg, rngs=nnx.Rngs(0))
+    net = abstract_module(lambda: PointTransformerSeg(pt_cfg, rngs=nnx.Rngs(0)))
     apply_weights(net, tensors, prefix=prefix, source=source)
     net.eval()
     return net
@@ -282,7 +282,7 @@ def load_adm(workdir):
     file (one read of the file)."""
     from jaxmotion.diffusion import make_schedule
     from jaxmotion.models import ADMConfig, make_adm
-    from jaxmotion.train.export import apply_weights, load_weights
+    from jaxmotion.train.export import abstract_module, apply_weights, load_weights
 
     if not workdir:
         raise ValueError("predicted_fraction > 0 needs a trained ADM: set adm_workdir=DIR (or "
@@ -293,7 +293,8 @@ def load_adm(workdir):
     tensors, saved = load_weights(path)
     backbone = load_backbone(tensors=tensors, model_config=saved["backbone_model"],
                              prefix="backbone/", source=src)
-    adm = make_adm(config_from_dict(ADMConfig, saved["model"]), rngs=nnx.Rngs(0))
+    adm = abstract_module(lambda: make_adm(config_from_dict(ADMConfig, saved["model"]),
+                                           rngs=nnx.Rngs(0)))
     net = ADMNet(backbone, adm)
     apply_weights(net.adm, tensors, prefix="adm/", source=src)
     net.eval()

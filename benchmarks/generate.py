@@ -1,0 +1,69 @@
+"""Cold and warm end-to-end time of `jaxmotion generate` (the README's main job).
+
+Runs the command in fresh Python processes, as a user does:
+
+- **cold**: an empty persistent compilation cache (first run after install);
+- **warm**: the same cache again (every later run); the target is ≤ 5 s on a 2-core CPU
+  for one 4-second motion at the default sampler.
+
+Prints wall-clock seconds of the whole process (import, load, sampling, body fit, writing
+every output) and the per-stage split reported by the command itself.
+
+    python benchmarks/generate.py [--runs 3] [--steps 20] [--video gif|mp4|none]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+
+def run_once(cache: str, out: str, args) -> tuple[float, dict]:
+    env = {**os.environ, "JAXMOTION_CACHE": cache, "JAX_PLATFORMS": "cpu"}
+    cmd = [sys.executable, "-m", "jaxmotion", "generate", "--scene", "demo", "--out", out,
+           "--steps", str(args.steps), "--video", args.video, "--samples", str(args.samples)]
+    if args.checkpoints:
+        cmd += ["--checkpoints", *args.checkpoints]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        sys.exit(f"generate failed:\n{proc.stderr}")
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    return wall, summary["timings_s"]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=3, help="warm runs (default 3)")
+    ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--samples", type=int, default=1)
+    ap.add_argument("--video", default="gif", choices=("gif", "mp4", "none"))
+    ap.add_argument("--checkpoints", nargs="+", default=None)
+    args = ap.parse_args()
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}")
+    print(f"jaxmotion generate --scene demo --steps {args.steps} --samples {args.samples} "
+          f"--video {args.video}")
+    with tempfile.TemporaryDirectory() as tmp:
+        cache, out = os.path.join(tmp, "cache"), os.path.join(tmp, "out")
+        cold, cold_st = run_once(cache, out, args)
+        warm = [run_once(cache, out, args) for _ in range(args.runs)]
+    stages = sorted(set(cold_st) | {k for _, st in warm for k in st})
+    print(f"{'run':<8}{'wall s':>8}  " + "".join(f"{s:>9}" for s in stages))
+    print(f"{'cold':<8}{cold:8.2f}  " + "".join(f"{cold_st.get(s, 0):9.2f}" for s in stages))
+    for i, (w, st) in enumerate(warm):
+        print(f"{f'warm {i + 1}':<8}{w:8.2f}  " + "".join(f"{st.get(s, 0):9.2f}" for s in stages))
+    med = statistics.median(w for w, _ in warm)
+    print(f"warm median {med:.2f} s (target ≤ 5 s: {'met' if med <= 5.0 else 'NOT met'}); "
+          f"cold / warm = {cold / med:.1f}x")
+
+
+if __name__ == "__main__":
+    main()

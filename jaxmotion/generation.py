@@ -13,10 +13,13 @@ Steps:
 1. **Scene**: a path (any mesh or point cloud :func:`jaxmotion.scene.load_scene` reads, a
    ScanNet-style labelled ``.ply``, a jaxmotion ``.npz``), a :class:`~jaxmotion.scene.Scene`,
    or ``"demo"`` (the built-in room, :func:`demo_scene`).
-2. **Region**: the models see a ``crop.size`` square (4 m) of the room, as in training. With
-   ``object_id`` the square is centred on that object. Otherwise, when the room is larger
-   than one square, the ADM is run on overlapping squares tiling the room and the square is
-   centred on the strongest predicted pelvis-affordance peak (the place the text points at).
+2. **Region**: the models see a ``crop.size`` square (4 m) of the room, as in training, and
+   in training the target object was always inside it. With ``object_id`` the square is
+   centred on that object. Otherwise, when the room has an object table (synthetic rooms,
+   labelled scans) and the text names one of its categories, the ADM is run on a square
+   centred on each object of that category and the object its map lights up most is chosen
+   (affordance grounding). Without labels, the room is tiled with half-overlapping squares
+   and the tile with the strongest predicted pelvis-affordance peak is used.
 3. **ADM → AMDM**: affordance maps then motions for ``samples`` seeds, one jitted, vmapped
    program (DDIM with ``steps`` steps per stage).
 4. **Body**: SMPL-X parameters fitted to the joints (:func:`jaxmotion.body.fit_joints_to_body`).
@@ -168,7 +171,9 @@ class Generation:
       crop_xyz ``[N,3]`` (scene frame), crop_rgb ``[N,3]`` in [0, 1]: the points the models saw.
       affordance: ``[K, N, 6]`` the ADM's maps (pelvis, feet, neck, wrists) in [0, 1].
       rotation ``[3,3]``, shift ``[3]``: the crop frame, ``x_scene = x_crop @ rotation + shift``.
-      object_id: the object chosen with ``object_id`` (else None); seed, steps: as passed.
+      object_id: as passed; target_id: the object the region was centred on (``object_id``, or
+        the one chosen from the text; None when the region came from tiling the room).
+      seed, steps: as passed.
       timings: seconds per stage.
     """
 
@@ -185,6 +190,7 @@ class Generation:
     rotation: np.ndarray
     shift: np.ndarray
     object_id: int | None
+    target_id: int | None
     seed: int
     steps: int
     timings: dict
@@ -227,6 +233,7 @@ class Generation:
                          crop_xyz=self.crop_xyz.astype(np.float32),
                          affordance=self.affordance.astype(np.float16),
                          object_id=np.int64(-1 if self.object_id is None else self.object_id),
+                         target_id=np.int64(-1 if self.target_id is None else self.target_id),
                          seed=np.int64(self.seed), steps=np.int64(self.steps),
                          scene_name=np.array(self.scene.name))
             p = self.smplx
@@ -373,12 +380,9 @@ def generate(
         obj = _object(room, object_id)
         centre = _clamp_centre(0.5 * (np.asarray(obj["bbox_min"][:2]) + np.asarray(obj["bbox_max"][:2])),
                                lo, hi, spec.size)
+        chosen = int(object_id)
     else:
-        tiles = _centres(lo, hi, spec.size)
-        if len(tiles) == 1:
-            centre = tiles[0]
-        else:
-            centre = _affordance_peak(pipe, room, tiles, emb, spec, k_tiles, sampler, seed, lo, hi)
+        centre, chosen = _choose_region(pipe, room, text, emb, spec, k_tiles, sampler, seed, lo, hi)
         lap("region")
     rng = np.random.default_rng([int(seed), 1])
     try:
@@ -408,7 +412,8 @@ def generate(
         text=text, scene=room, joints=joints, fps=fps, mask=np.ones(t_frames, bool), smplx=smplx,
         fit_error=err, crop_xyz=room.xyz[pick].astype(np.float32),
         crop_rgb=room.rgb[pick].astype(np.float32), affordance=aff, rotation=rot, shift=shift,
-        object_id=None if object_id is None else int(object_id), seed=int(seed), steps=int(steps),
+        object_id=None if object_id is None else int(object_id), target_id=chosen,
+        seed=int(seed), steps=int(steps),
         timings=times,
     )
 
@@ -425,33 +430,78 @@ def _object(room, object_id) -> dict:
         raise GenerateError(f"unknown object id {object_id}; this scene's objects: {valid}") from None
 
 
-def _affordance_peak(pipe, room, tiles, emb, spec, key, sampler, seed, lo, hi) -> np.ndarray:
-    """Run the ADM on every tile; return the (clamped) xy of the strongest pelvis peak."""
-    import jax
+def mentioned_objects(room, text: str) -> list[dict]:
+    """Objects of the first category the text names (whole words, plural ``s`` allowed;
+    longer names first, so "coffee table" beats "table"); ``[]`` when it names none."""
+    import re
 
+    low = " " + re.sub(r"[^a-z ]+", " ", text.lower()) + " "
+    best, where = None, len(low)
+    for cat in sorted({o["category"] for o in room.objects}, key=len, reverse=True):
+        name = cat.replace("_", " ").lower()
+        m = re.search(rf" {re.escape(name)}(s|es)? ", low)
+        if m and m.start() < where:
+            best, where = name, m.start()
+    if best is None:
+        return []
+    return [o for o in room.objects if o["category"].replace("_", " ").lower() == best]
+
+
+def _crops(room, centres, spec, seed: int, tag: int):
+    """Crops at several centres (skipping ones with no point): lists of (pick, points, colours,
+    shift, centre)."""
     from jaxmotion.data.crop import crop_at
 
-    pts, cols, shifts = [], [], []
-    for i, c in enumerate(tiles):
+    out = []
+    for i, c in enumerate(centres):
         try:
-            pick, p, shift, _ = crop_at(np.random.default_rng([int(seed), 2, i]), room.xyz, c, spec)
+            pick, p, shift, _ = crop_at(np.random.default_rng([int(seed), tag, i]), room.xyz, c, spec)
         except ValueError:  # a tile outside an L-shaped room
             continue
-        pts.append(p)
-        cols.append((2.0 * room.rgb[pick] - 1.0).astype(np.float32))
-        shifts.append(shift)
-    b = len(pts)
-    aff = jax.device_get(pipe.sample_affordance(key, np.stack(pts), np.stack(cols),
-                                                np.broadcast_to(emb[0], (b, emb.shape[1])),
-                                                sampler))
-    best, centre = -1.0, tiles[0]
-    for i in range(b):
-        pelvis = np.asarray(aff[i][:, 0])
-        top = np.argsort(pelvis)[-32:]  # the peak as the mean of its 32 strongest points
-        score = float(pelvis[top].mean())
-        if score > best:
-            best, centre = score, pts[i][top, :2].mean(0) + shifts[i][:2]
-    return _clamp_centre(centre, lo, hi, spec.size)
+        out.append((pick, p, (2.0 * room.rgb[pick] - 1.0).astype(np.float32), shift, c))
+    return out
+
+
+def _adm_maps(pipe, crops, emb, key, sampler) -> np.ndarray:
+    import jax
+
+    b = len(crops)
+    return np.asarray(jax.device_get(pipe.sample_affordance(
+        key, np.stack([c[1] for c in crops]), np.stack([c[2] for c in crops]),
+        np.broadcast_to(emb[0], (b, emb.shape[1])), sampler)))
+
+
+def _choose_region(pipe, room, text, emb, spec, key, sampler, seed, lo, hi):
+    """The crop centre for a text without ``object_id`` (see the module docstring):
+
+    - the room has an object table and the text names a category in it: the candidates are
+      those objects; the ADM is run on a crop centred on each and the one whose points it
+      lights up most (mean over its points of the strongest channel) wins;
+    - otherwise the room is tiled with half-overlapping squares and the tile holding the
+      strongest pelvis-affordance peak (mean of its 32 strongest points) wins.
+    Returns ``(centre, chosen object id or None)``.
+    """
+    candidates = mentioned_objects(room, text) if room.objects else []
+    if candidates:
+        centres = [_clamp_centre(0.5 * (np.asarray(o["bbox_min"][:2]) + np.asarray(o["bbox_max"][:2])),
+                                 lo, hi, spec.size) for o in candidates]
+        if len(candidates) == 1:
+            return centres[0], candidates[0]["id"]
+        crops = _crops(room, centres, spec, seed, 2)
+        maps = _adm_maps(pipe, crops, emb, key, sampler)
+        scores = []
+        for (pick, *_), a, o in zip(crops, maps, candidates, strict=True):
+            on = room.instance[pick] == o["id"]
+            scores.append(float(a[on].max(axis=-1).mean()) if on.any() else -1.0)
+        i = int(np.argmax(scores))
+        return centres[i], candidates[i]["id"]
+    tiles = _centres(lo, hi, spec.size)
+    if len(tiles) == 1:
+        return tiles[0], None
+    crops = _crops(room, tiles, spec, seed, 3)
+    maps = _adm_maps(pipe, crops, emb, key, sampler)
+    scores = [float(np.sort(a[:, 0])[-32:].mean()) for a in maps]
+    return np.asarray(crops[int(np.argmax(scores))][4]), None
 
 
 def summary(res: Generation) -> str:

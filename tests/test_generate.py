@@ -36,6 +36,18 @@ def test_shipped_demo_room_is_the_seeded_room():
     assert {"chair", "table"} <= {o["category"] for o in a.objects}
 
 
+def test_target_category_is_the_first_one_the_text_names():
+    from jaxmotion.generation import demo_scene, mentioned_objects
+
+    room = demo_scene()
+    ids = lambda t: [o["id"] for o in mentioned_objects(room, t)]  # noqa: E731
+    chair = [o["id"] for o in room.objects if o["category"] == "chair"]
+    stools = [o["id"] for o in room.objects if o["category"] == "stool"]
+    assert ids("sit on the chair next to the table") == chair
+    assert ids("Walk over to the STOOLS, then stop.") == stools
+    assert ids("dance") == [] and ids("sit on the chairman") == []
+
+
 def test_shapes_frame_and_fit(result):
     r = result
     assert r.joints.shape == (2, 120, 22, 3) and np.isfinite(r.joints).all()
@@ -45,7 +57,9 @@ def test_shapes_frame_and_fit(result):
     lo, hi = r.scene.xyz.min(0), r.scene.xyz.max(0)
     assert np.all(r.crop_xyz >= lo - 1e-5) and np.all(r.crop_xyz <= hi + 1e-5)
     assert r.fit_error.shape == (2,) and np.isfinite(r.fit_error).all()
-    assert "sample" in r.timings and "region" in r.timings  # the demo room needs tiling
+    assert "sample" in r.timings and "region" in r.timings
+    chair = next(o for o in r.scene.objects if o["category"] == "chair")
+    assert r.target_id == chair["id"]  # the only chair of the demo room
 
 
 def test_same_seed_same_output_and_seeds_differ(result, ckpt):
@@ -152,3 +166,9 @@ def test_shipped_default():
     r = jaxmotion.generate("demo", samples=1, steps=10, fit=False)
     assert r.joints.shape[1:] == (120, 22, 3) and np.isfinite(r.joints).all()
     assert r.joints[..., 2].min() > -0.1  # nobody sinks into the floor
+
+
+def test_text_naming_no_object_tiles_the_room(ckpt):
+    r = jaxmotion.generate("demo", "dance around for a while", checkpoints=ckpt, fit=False,
+                           **FAST)
+    assert r.target_id is None and r.joints.shape == (1, 120, 22, 3)

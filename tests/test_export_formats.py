@@ -366,6 +366,96 @@ def test_video_rejects_bad_requests(tmp_path, monkeypatch):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("size", [(96, 64), (50, 80)])
+def test_video_camera_is_mplot3ds(size):
+    """The numpy camera puts points on the pixels where matplotlib's mplot3d drew them."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from mpl_toolkits.mplot3d import proj3d
+
+    from jaxmotion.export.video import _SS, _Camera
+
+    width, height = size
+    joints = _motion_joints(14, 2, 4) + [1.0, -2.0, 0.0]
+    cam = _Camera(joints, width, height)
+    fig = Figure(figsize=(width / 100, height / 100), dpi=100)
+    FigureCanvasAgg(fig)
+    side = max(width, height)
+    ax = fig.add_axes(
+        ((1 - side / width) / 2, (1 - side / height) / 2, side / width, side / height),
+        projection="3d",
+    )
+    lo, hi = cam.centre - cam.half, cam.centre + cam.half
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect((1, 1, 1))
+    ax.view_init(elev=30, azim=-60)
+    fig.canvas.draw()
+    pts = np.concatenate([joints.reshape(-1, 3), _scene(15, 20)[0] + cam.centre])
+    x, y, _ = proj3d.proj_transform(*pts.T, ax.get_proj())
+    px = ax.transData.transform(np.stack([x, y], axis=1))
+    np.testing.assert_allclose(
+        cam.project(pts)[0] / _SS, np.stack([px[:, 0], height - px[:, 1]], 1), atol=1e-6
+    )
+
+
+def _gif_frames(path) -> np.ndarray:
+    import imageio.v3 as iio
+
+    return iio.imread(path)[..., :3]
+
+
+def test_gif_still_scene_palette_and_timing(tmp_path):
+    from PIL import Image
+
+    xyz, rgb = _scene(16, 3000)
+    joints = _motion_joints(17, 1, 45) * 0.3 + [0.0, 0.0, 0.7]
+    path = render_motion_video(tmp_path / "m.gif", xyz, rgb, joints, 30, size=(120, 90))
+    with Image.open(path) as im:
+        durations = []
+        for i in range(im.n_frames):
+            im.seek(i)
+            durations.append(im.info["duration"])
+    assert len(durations) == 23  # 45 frames at stride 2 (max_frames=40)
+    assert sum(durations) == pytest.approx(1000 * 23 / 15, abs=10)  # the clip's duration
+    assert set(durations) <= {60, 70}  # 1/15 s in whole hundredths, rounded as it runs
+    frames = _gif_frames(path)
+    assert (frames[0] == 255).all(-1).mean() > 0.2  # the white background stays white
+    changed = (frames != frames[:1]).any(-1).any(0)
+    assert 0 < changed.mean() < 0.3  # only the skeleton and the clock move
+    # GIFs stay at ≤ 50 frames per second: 120 fps is shown at 40 (stride 3)
+    path = render_motion_video(tmp_path / "f.gif", xyz, rgb, joints[:, :10], 120, size=(32, 32))
+    assert len(_gif_frames(path)) == 4
+
+
+def test_render_frame_png(tmp_path):
+    import imageio.v3 as iio
+
+    from jaxmotion.export import render_frame
+
+    xyz, rgb = _scene(18, 2000)
+    joints = _motion_joints(19, 2, 12) * 0.3 + [0.0, 0.0, 0.7]
+    path = render_frame(tmp_path / "m.png", xyz, rgb, joints, size=(200, 120), text="sit down")
+    img = iio.imread(path)
+    assert img.shape == (120, 200, 3) and img.dtype == np.uint8
+    blue = (np.abs(img.astype(int) - [31, 119, 180]).sum(-1) < 30).sum()  # sample 0, bold
+    orange = (np.abs(img.astype(int) - [255, 127, 14]).sum(-1) < 30).sum()  # sample 1
+    assert blue > 20 and orange > 20
+    again = render_frame(
+        tmp_path / "m.png", xyz, None, joints[0], frame=3, affordance=np.linspace(0, 1, 2000)
+    )
+    assert iio.imread(again).shape == (540, 960, 3)  # the default size
+    with pytest.raises(ValueError, match=".png"):
+        render_frame(tmp_path / "m.jpg", xyz, rgb, joints)
+    with pytest.raises(ValueError, match="frame"):
+        render_frame(tmp_path / "m.png", xyz, rgb, joints, frame=12)
+    with pytest.raises(ValueError, match="joints"):
+        render_frame(tmp_path / "m.png", xyz, rgb, joints[..., :2])
+    _no_temp_files(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.png"]
+
+
 # --------------------------------------------------------------------------- HTML viewer
 
 

@@ -4,7 +4,8 @@
   (Blender, MotionBuilder, Maya), y-up, metres.
 - :func:`write_glb`: binary glTF 2.0 with the skinned, animated body of each
   sample and the scene (mesh or point cloud), y-up (Blender, three.js, engines).
-- :func:`render_motion_video`: an offscreen GIF or MP4 of the motion in its scene.
+- :func:`render_motion_video`: an offscreen GIF or MP4 of the motion in its scene;
+  :func:`render_frame`: one still PNG of it (the skeleton at several frames).
 - :func:`write_viewer_html`: one self-contained HTML page (WebGL2, no network)
   that plays the motion in the scene, with the affordance map as a heat layer.
 
@@ -16,7 +17,15 @@ naming the argument.
 
 from jaxmotion.export.bvh import BVH, read_bvh, write_bvh
 from jaxmotion.export.gltf import write_glb
-from jaxmotion.export.video import render_motion_video
+from jaxmotion.export.video import render_frame, render_motion_video
 from jaxmotion.export.viewer import write_viewer_html
 
-__all__ = ["BVH", "read_bvh", "render_motion_video", "write_bvh", "write_glb", "write_viewer_html"]
+__all__ = [
+    "BVH",
+    "read_bvh",
+    "render_frame",
+    "render_motion_video",
+    "write_bvh",
+    "write_glb",
+    "write_viewer_html",
+]

@@ -45,6 +45,8 @@ def test_runner_over_tiny_runs(tiny_runs, tmp_path, body):
     assert (m["body_fit_error_m"] is not None) == body
     md = (tmp_path / "results.md").read_text()
     assert md == format_markdown(rep) and "| two | DDIM-2 |" in md and "Table 3" in md
+    gt = rep["ground_truth"]
+    assert gt["non_collision"] > 0.9 and "| dataset motions |" in md
 
 
 def test_same_seed_same_numbers(tiny_runs):

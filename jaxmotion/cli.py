@@ -45,6 +45,14 @@ def _cmd_scene_info(args: argparse.Namespace) -> int:
         "instances": int(len(set(scene.instance[scene.instance >= 0].tolist()))),
         "objects": len(scene.objects),
     }
+    from jaxmotion.generation import object_table
+
+    objects = object_table(scene)
+    if objects:
+        info["object_table"] = [
+            {"id": o["id"], "category": o["category"],
+             "centre": [round(float(a + b) / 2, 3) for a, b in zip(o["bbox_min"], o["bbox_max"])]}
+            for o in objects]
     print(json.dumps(info, indent=2))
     return 0
 

@@ -48,6 +48,21 @@ def test_target_category_is_the_first_one_the_text_names():
     assert ids("dance") == [] and ids("sit on the chairman") == []
 
 
+def test_object_table_from_point_labels_and_synonyms():
+    import dataclasses
+
+    from jaxmotion.generation import demo_scene, mentioned_objects, object_table
+
+    room = demo_scene()
+    bare = dataclasses.replace(room, objects=())  # a labelled scan: per-point ids only
+    derived = {o["id"]: o for o in object_table(bare)}
+    for o in room.objects:
+        assert derived[o["id"]]["category"] == o["category"]
+        np.testing.assert_array_less(np.asarray(o["bbox_min"]) - 0.05, derived[o["id"]]["bbox_min"])
+    fridge = [o["id"] for o in room.objects if o["category"] == "fridge"]
+    assert [o["id"] for o in mentioned_objects(bare, "open the refrigerator")] == fridge
+
+
 def test_shapes_frame_and_fit(result):
     r = result
     assert r.joints.shape == (2, 120, 22, 3) and np.isfinite(r.joints).all()

@@ -35,7 +35,6 @@ import dataclasses
 import functools
 import json
 import os
-import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -552,18 +551,3 @@ def summary(res: Generation) -> str:
     return json.dumps({"text": res.text, "samples": res.num_samples, "frames": int(res.mask.sum()),
                        "fps": res.fps, "fit_error_cm": [round(float(e) * 100, 2) for e in res.fit_error],
                        "timings_s": {k: round(v, 3) for k, v in res.timings.items()}})
-
-
-def _copy_checkpoints(adm_workdir, amdm_workdir, dest, dtype=np.float16) -> tuple[Path, Path]:
-    """Compact two training workdirs' weights for shipping (parameters in ``dtype``;
-    statistics and batch-norm state stay float32)."""
-    from jaxmotion.train.export import compact_weights
-
-    dest = Path(dest)
-    dest.mkdir(parents=True, exist_ok=True)
-    out = []
-    for wd, name in ((adm_workdir, "adm"), (amdm_workdir, "amdm")):
-        out.append(compact_weights(Path(wd) / "model.safetensors", dest / f"{name}.safetensors",
-                                   dtype=dtype))
-    shutil.copy2(Path(amdm_workdir) / "config.json", dest / "amdm_config.json")
-    return out[0], out[1]

@@ -56,3 +56,24 @@ def test_same_seed_same_numbers(tiny_runs):
     a = evaluate(out["data"], spec, **kw)["models"]["two"]["replications"]
     b = evaluate(out["data"], spec, **kw)["models"]["two"]["replications"]
     assert a == b
+
+
+def test_runner_with_an_evaluator_adds_text_motion_columns(tiny_runs, tmp_path):
+    from jaxmotion.config import load_config
+    from jaxmotion.train import train
+    from jaxmotion.train.tasks import get_task
+
+    root, out = tiny_runs
+    cfg = load_config("configs/evaluator.py", [f"data_dir={out['data']}", "preset=tiny",
+                                                "steps=5", f"workdir={tmp_path / 'ev'}"])
+    train(cfg, get_task(cfg))
+    spec = [ModelSpec("two", str(root / "adm"), str(root / "amdm"), "ddim", 2)]
+    rep = evaluate(out["data"], spec, num_cases=4, samples=2, replications=2, body=False,
+                   evaluator=tmp_path / "ev", batch_size=4, progress=False)
+    s = rep["models"]["two"]["summary"]
+    for k in ("fid", "r_precision_top3", "multimodal_dist", "diversity", "multimodality"):
+        assert s[k]["n"] == 2 and np.isfinite(s[k]["mean"]), k
+    assert not [k for k in s if k.endswith("_ci95")]
+    assert "r_precision_top3" in rep["real"] and rep["settings"]["evaluator"]
+    md = format_markdown(rep)
+    assert "FID ↓" in md and "| dataset motions |" in md

@@ -33,8 +33,8 @@ __all__ = ["ModelSpec", "evaluate", "format_markdown", "parse_model", "write_rep
 
 PHYSICAL = ("goal_distance", "contact", "non_collision", "apd", "skating")
 GROUNDING = ("min_dist", "pelvis_dist", "all_dist", "success@0.1", "success@0.3", "success@0.5")
-TEXT_MOTION = ("fid", "r_precision_top1", "r_precision_top2", "r_precision_top3", "mm_dist",
-               "diversity", "multimodality")
+TEXT_MOTION = ("fid", "r_precision_top1", "r_precision_top2", "r_precision_top3",
+               "multimodal_dist", "diversity", "multimodality")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -227,9 +227,11 @@ def evaluate(
 
                 mask = np.stack([c["mask"] for c in cases])
                 tm = text_motion_scores(evaluator, [c["text"] for c in cases],
-                                        np.stack([c["gt"] for c in cases]), mask, joints, mask,
+                                        np.stack([c["gt"] for c in cases]), mask, joints,
+                                        np.broadcast_to(mask[:, None], joints.shape[:3]),
                                         np.random.default_rng([seed, r]))
-                rep.update({k: float(v) for k, v in tm.get("generated", tm).items()})
+                rep.update({k: float(v) for k, v in tm["generated"].items()
+                            if not k.endswith("_ci95")})  # intervals come from replications
                 if r == 0 and "real" in tm:
                     report.setdefault("real", {k: float(v) for k, v in tm["real"].items()})
             reps.append(rep)
@@ -290,7 +292,8 @@ def format_markdown(report: dict) -> str:
         cells = ["dataset motions", "–", num(g, "goal_distance"), num(g, "contact", 100, 2),
                  num(g, "non_collision", 100, 2), "–", num(g, "skating", 100, 2)]
         if has_tm:
-            cells += ["–", num(r, "r_precision_top3"), num(r, "mm_dist"), num(r, "diversity"), "–"]
+            cells += ["–", num(r, "r_precision_top3"), num(r, "multimodal_dist"),
+                      num(r, "diversity"), "–"]
         lines.append("| " + " | ".join(cells) + " |")
     for name, m in models.items():
         s = m["summary"]
@@ -298,8 +301,8 @@ def format_markdown(report: dict) -> str:
                  _cell(s.get("contact"), 100, 2), _cell(s.get("non_collision"), 100, 2),
                  _cell(s.get("apd")), _cell(s.get("skating"), 100, 2)]
         if has_tm:
-            cells += [_cell(s.get(k)) for k in ("fid", "r_precision_top3", "mm_dist", "diversity",
-                                               "multimodality")]
+            cells += [_cell(s.get(k)) for k in ("fid", "r_precision_top3", "multimodal_dist",
+                                               "diversity", "multimodality")]
         lines.append("| " + " | ".join(cells) + " |")
     grounded = {n: m for n, m in models.items() if m["two_stage"]}
     if grounded:

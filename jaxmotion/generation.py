@@ -129,17 +129,64 @@ def _text_encoder():
     return load_text_encoder("minilm")
 
 
-def _check_text(text, encoder) -> str:
+MAX_TEXT_TOKENS = 256  # the text encoder's max_seq_length, [CLS] and [SEP] included
+
+
+@functools.lru_cache(maxsize=1)
+def _tokenizer():
+    """MiniLM's tokenizer without truncation (to count tokens before the encoder is loaded)."""
+    from tokenizers import Tokenizer
+
+    from jaxmotion.text.minilm import minilm_dir
+
+    tok = Tokenizer.from_file(str(minilm_dir() / "tokenizer.json"))
+    tok.no_truncation()
+    tok.no_padding()
+    return tok
+
+
+def _check_text(text) -> str:
     if not isinstance(text, str):
         raise GenerateError(f"text must be a string, got {type(text).__name__}")
     text = " ".join(text.split())
     if not text:
         raise GenerateError('text is empty; describe the motion, e.g. "sit on the chair"')
-    n = len(encoder.tokenize([text])[0])
-    if n >= encoder.max_length:
+    n = len(_tokenizer().encode(text).ids)
+    if n > MAX_TEXT_TOKENS:
         raise GenerateError(f"text is too long ({n} tokens; the text encoder reads at most "
-                            f"{encoder.max_length - 2}): shorten it to one or two sentences")
+                            f"{MAX_TEXT_TOKENS}): shorten it to one or two sentences")
     return text
+
+
+def _embed(text: str, cache_dir: Path | None) -> np.ndarray:
+    """The MiniLM embedding ``[1, 384]`` of ``text``, from an on-disk cache when this text was
+    embedded before (keyed by the weights file's size and mtime and the text): a repeated
+    command then never loads the encoder."""
+    import hashlib
+
+    from jaxmotion.text.minilm import minilm_dir
+
+    weights = minilm_dir() / "model.safetensors"
+    st = weights.stat()
+    key = hashlib.sha256(f"minilm|{st.st_size}|{st.st_mtime_ns}|{text}".encode()).hexdigest()
+    path = None if cache_dir is None else Path(cache_dir) / f"{key}.npy"
+    if path is not None and path.is_file():
+        try:
+            emb = np.load(path)
+            if emb.shape == (1, 384) and np.isfinite(emb).all():
+                return emb
+        except (OSError, ValueError):
+            pass  # a damaged entry: recompute it
+    emb = np.asarray(_text_encoder()([text]), np.float32)
+    if path is not None:
+        try:
+            from jaxmotion._atomic import atomic_open
+
+            with atomic_open(path, "wb") as f:
+                np.save(f, emb)
+        except OSError:
+            pass  # read-only cache: fine
+    return emb
 
 
 def _load(scene, num_points: int | None):
@@ -340,7 +387,7 @@ def generate(
     from jaxmotion.data.crop import CropSpec, crop_at
     from jaxmotion.sample import SamplerSpec
 
-    enable_compilation_cache()
+    xla_cache = enable_compilation_cache()
     times: dict[str, float] = {}
     t0 = time.perf_counter()
 
@@ -358,8 +405,7 @@ def generate(
     if samples > 256:
         raise GenerateError(f"samples={samples} is more than 256; generate in several calls")
     adm_file, amdm_file = _resolve_checkpoints(checkpoints)
-    encoder = _text_encoder()
-    text = _check_text(text, encoder)
+    text = _check_text(text)
     room = _load(scene, num_points)
     if room.num_points == 0:
         raise GenerateError("the scene has no points")
@@ -369,7 +415,7 @@ def generate(
     spec = CropSpec(**{**crop_cfg.__dict__, "rotate": False})
     t_frames, fps = int(mcfg["max_frames"]), 30.0
     lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
-    emb = encoder([text])
+    emb = _embed(text, xla_cache / "text-embeddings")
     key = jax.random.key(int(seed))
     k_tiles, k_main = jax.random.split(key)
     sampler = SamplerSpec(method="ddim", steps=int(steps), guidance=float(guidance))

@@ -100,6 +100,7 @@ def test_object_id_centres_the_crop_on_the_object(ckpt):
     (dict(text=""), "text is empty"),
     (dict(text="   "), "text is empty"),
     (dict(text="walk " * 400), "too long"),
+    (dict(text="walk " * 255), "too long"),
     (dict(object_id=999), "unknown object id 999"),
     (dict(samples=0), "samples must be"),
     (dict(steps=0), "steps must be"),
@@ -187,3 +188,14 @@ def test_text_naming_no_object_tiles_the_room(ckpt):
     r = jaxmotion.generate("demo", "dance around for a while", checkpoints=ckpt, fit=False,
                            **FAST)
     assert r.target_id is None and r.joints.shape == (1, 120, 22, 3)
+
+
+def test_text_embedding_cache(tmp_path):
+    from jaxmotion.generation import _embed, _text_encoder
+
+    fresh = _embed("sit on the sofa", tmp_path)
+    assert len(list(tmp_path.glob("*.npy"))) == 1
+    np.testing.assert_array_equal(_embed("sit on the sofa", tmp_path), fresh)  # from the file
+    np.testing.assert_allclose(fresh, _text_encoder()(["sit on the sofa"]), atol=1e-6)
+    next(tmp_path.glob("*.npy")).write_bytes(b"broken")  # a damaged entry is recomputed
+    np.testing.assert_array_equal(_embed("sit on the sofa", tmp_path), fresh)

@@ -42,6 +42,8 @@ from typing import Any
 
 import numpy as np
 
+from jaxmotion._version import __version__
+
 __all__ = [
     "DEFAULT_TEXT",
     "GenerateError",
@@ -187,6 +189,62 @@ def _embed(text: str, cache_dir: Path | None) -> np.ndarray:
         except OSError:
             pass  # read-only cache: fine
     return emb
+
+
+def _weights_config(path) -> dict:
+    """The config stored in a weights file's metadata (without reading its tensors)."""
+    from safetensors import safe_open
+
+    try:
+        with safe_open(str(path), framework="numpy") as f:
+            return json.loads((f.metadata() or {})["config"])
+    except (OSError, KeyError, ValueError) as e:
+        raise GenerateError(f"{path}: not a jaxmotion weights file ({e})") from e
+
+
+def _digest(*parts) -> str:
+    """sha256 over strings and files (for the names of cached compiled programs)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for part in parts:
+        if isinstance(part, Path):
+            h.update(part.read_bytes())
+        else:
+            h.update(repr(part).encode())
+        h.update(b"\0")
+    return h.hexdigest()[:32]
+
+
+def _aot_call(cache_dir: Path | None, name: str, fingerprint: str, build, args):
+    """``build()(*args)`` through a serialized ``jax.export`` artefact in ``cache_dir``.
+
+    A new process otherwise spends seconds re-tracing the samplers and the LBFGS fit (and
+    building the networks) before the persistent compilation cache can even be consulted;
+    the artefact holds the traced program (weights included), so a repeated command only
+    deserializes it. ``fingerprint`` must change with anything that changes the program.
+    """
+    import jax
+    from jax import export as jexport
+
+    fingerprint = _digest(fingerprint, [(np.shape(a), str(np.asarray(a).dtype)) for a in args])
+    path = None if cache_dir is None else Path(cache_dir) / f"{name}-{fingerprint}.jaxexport"
+    if path is not None and path.is_file():
+        try:
+            return jexport.deserialize(bytearray(path.read_bytes())).call(*args)
+        except Exception:  # noqa: BLE001 - a stale or damaged artefact is rebuilt below
+            path.unlink(missing_ok=True)
+    specs = [jax.ShapeDtypeStruct(np.shape(a), np.asarray(a).dtype) for a in args]
+    exp = jexport.export(jax.jit(build()))(*specs)
+    if path is not None:
+        try:
+            from jaxmotion._atomic import atomic_open
+
+            with atomic_open(path, "wb") as f:
+                f.write(exp.serialize())
+        except (OSError, ImportError):
+            pass  # a read-only cache, or no flatbuffers to serialize with: run uncached
+    return exp.call(*args)
 
 
 def _load(scene, num_points: int | None):
@@ -361,6 +419,7 @@ def generate(
     num_points: int | None = None,
     fit: bool = True,
     fit_iters: int = 100,
+    aot: bool = True,
     progress: bool = False,
 ) -> Generation:
     """Generate ``samples`` motions of a person doing ``text`` in ``scene``.
@@ -375,6 +434,8 @@ def generate(
         an ``(adm, amdm)`` pair of workdirs / files.
       num_points: surface samples taken from a mesh (default 100k); point clouds keep theirs.
       fit: fit SMPL-X bodies (needed by :meth:`Generation.save`); fit_iters: LBFGS iterations.
+      aot: keep the traced sampling and fitting programs on disk (``jax.export``, next to the
+        compilation cache) so that later calls in new processes skip tracing.
       progress: print the stages with their times.
     Raises:
       GenerateError: bad text, scene, object id, sizes or checkpoints (the message says the fix).
@@ -409,8 +470,11 @@ def generate(
     room = _load(scene, num_points)
     if room.num_points == 0:
         raise GenerateError("the scene has no points")
-    pipe = _pipeline(str(adm_file), str(amdm_file))
-    mcfg = pipe.amdm_config
+    mcfg = _weights_config(amdm_file)
+    if mcfg.get("task") != "amdm" or "crop" not in mcfg:
+        raise GenerateError(f"checkpoints {adm_file} and {amdm_file} do not load together: "
+                            f"{amdm_file} is a {mcfg.get('task')!r} checkpoint, not an AMDM one")
+    get_pipe = functools.partial(_pipeline, str(adm_file), str(amdm_file))
     crop_cfg = config_from_dict(CropConfig, mcfg["crop"])
     spec = CropSpec(**{**crop_cfg.__dict__, "rotate": False})
     t_frames, fps = int(mcfg["max_frames"]), 30.0
@@ -419,6 +483,8 @@ def generate(
     key = jax.random.key(int(seed))
     k_tiles, k_main = jax.random.split(key)
     sampler = SamplerSpec(method="ddim", steps=int(steps), guidance=float(guidance))
+    aot_dir = xla_cache / "programs" if aot else None
+    versions = (jax.__version__, __version__)
     lap("load")
 
     if object_id is not None:
@@ -427,7 +493,8 @@ def generate(
                                lo, hi, spec.size)
         chosen = int(object_id)
     else:
-        centre, chosen = _choose_region(pipe, room, text, emb, spec, k_tiles, sampler, seed, lo, hi)
+        centre, chosen = _choose_region(get_pipe, room, text, emb, spec, k_tiles, sampler, seed,
+                                        lo, hi)
         lap("region")
     rng = np.random.default_rng([int(seed), 1])
     try:
@@ -436,9 +503,17 @@ def generate(
         raise GenerateError(f"the scene has no points near the chosen region: {e}") from e
     colors = (2.0 * room.rgb[pick] - 1.0).astype(np.float32)
     k = int(samples)
-    tile = lambda x: np.broadcast_to(x, (k, *np.shape(x)))  # noqa: E731
-    res = pipe.sample(k_main, tile(pts), tile(colors), tile(emb[0]), np.ones((k, t_frames), bool),
-                      adm=sampler, amdm=sampler)
+    tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))  # noqa: E731
+
+    def build_sampler():
+        pipe = get_pipe()
+        return lambda kd, p, c, e, m: pipe.sample(jax.random.wrap_key_data(kd), p, c, e, m,
+                                                  adm=sampler, amdm=sampler)
+
+    args = (np.asarray(jax.random.key_data(k_main)), tile(pts), tile(colors),
+            tile(emb[0]), np.ones((k, t_frames), bool))
+    res = _aot_call(aot_dir, "sample", _digest(versions, sampler, Path(adm_file), Path(amdm_file)),
+                    build_sampler, args)
     res = jax.device_get(res)
     joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
     aff = np.asarray(res.get("affordance", np.zeros((k, len(pick), 6))), np.float32)
@@ -448,10 +523,18 @@ def generate(
     if fit:
         from jaxmotion.body import fit_joints_to_body
 
-        bf = fit_joints_to_body(joints, iters=int(fit_iters), fps=fps)
-        smplx = {n: np.asarray(getattr(bf, n), np.float32)
-                 for n in ("global_orient", "body_pose", "transl", "betas")}
-        err = np.asarray(bf.mean_error, np.float32)
+        names = ("global_orient", "body_pose", "transl", "betas", "mean_error")
+
+        def build_fit():
+            def f(j):
+                bf = fit_joints_to_body(j, iters=int(fit_iters), fps=fps)
+                return tuple(getattr(bf, n) for n in names)
+            return f
+
+        out = jax.device_get(_aot_call(aot_dir, "fit", _digest(versions, int(fit_iters), fps),
+                                       build_fit, (joints,)))
+        smplx = {n: np.asarray(v, np.float32) for n, v in zip(names[:4], out[:4], strict=True)}
+        err = np.asarray(out[4], np.float32)
         lap("fit")
     return Generation(
         text=text, scene=room, joints=joints, fps=fps, mask=np.ones(t_frames, bool), smplx=smplx,
@@ -550,16 +633,16 @@ def _crops(room, centres, spec, seed: int, tag: int):
     return out
 
 
-def _adm_maps(pipe, crops, emb, key, sampler) -> np.ndarray:
+def _adm_maps(get_pipe, crops, emb, key, sampler) -> np.ndarray:
     import jax
 
     b = len(crops)
-    return np.asarray(jax.device_get(pipe.sample_affordance(
+    return np.asarray(jax.device_get(get_pipe().sample_affordance(
         key, np.stack([c[1] for c in crops]), np.stack([c[2] for c in crops]),
         np.broadcast_to(emb[0], (b, emb.shape[1])), sampler)))
 
 
-def _choose_region(pipe, room, text, emb, spec, key, sampler, seed, lo, hi):
+def _choose_region(get_pipe, room, text, emb, spec, key, sampler, seed, lo, hi):
     """The crop centre for a text without ``object_id`` (see the module docstring):
 
     - the room has an object table and the text names a category in it: the candidates are
@@ -576,7 +659,7 @@ def _choose_region(pipe, room, text, emb, spec, key, sampler, seed, lo, hi):
         if len(candidates) == 1:
             return centres[0], candidates[0]["id"]
         crops = _crops(room, centres, spec, seed, 2)
-        maps = _adm_maps(pipe, crops, emb, key, sampler)
+        maps = _adm_maps(get_pipe, crops, emb, key, sampler)
         scores = []
         for (pick, *_), a, o in zip(crops, maps, candidates, strict=True):
             on = room.instance[pick] == o["id"]
@@ -587,7 +670,7 @@ def _choose_region(pipe, room, text, emb, spec, key, sampler, seed, lo, hi):
     if len(tiles) == 1:
         return tiles[0], None
     crops = _crops(room, tiles, spec, seed, 3)
-    maps = _adm_maps(pipe, crops, emb, key, sampler)
+    maps = _adm_maps(get_pipe, crops, emb, key, sampler)
     scores = [float(np.sort(a[:, 0])[-32:].mean()) for a in maps]
     return np.asarray(crops[int(np.argmax(scores))][4]), None
 

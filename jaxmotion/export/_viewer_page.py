@@ -106,7 +106,7 @@ PAGE = r"""<!DOCTYPE html>
     `#version 300 es
      in vec3 a_pos; in vec3 a_col; uniform mat4 u_mvp; uniform float u_size; out vec3 v_col;
      void main() { gl_Position = u_mvp * vec4(a_pos, 1.0);
-       gl_PointSize = clamp(u_size / gl_Position.w, 1.0, 14.0); v_col = a_col; }`,
+       gl_PointSize = clamp(u_size / gl_Position.w, 1.0, 6.0); v_col = a_col; }`,
     `#version 300 es
      precision mediump float; in vec3 v_col; out vec4 o;
      void main() { o = vec4(v_col, 1.0); }`);
@@ -223,7 +223,7 @@ PAGE = r"""<!DOCTYPE html>
     hi[i % 3] = Math.max(hi[i % 3], joints[i]);
   }
   const home = { target: [0, 1, 2].map((c) => 0.5 * (lo[c] + hi[c])),
-    dist: 2.2 * Math.max(1.5, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])),
+    dist: 3.0 * Math.max(1.5, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])),
     az: -Math.PI / 3, el: Math.PI / 6 };
   let cam = Object.assign({}, home, { target: home.target.slice() });
   const FOV = Math.PI / 4;

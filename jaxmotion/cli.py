@@ -144,7 +144,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     report = evaluate(args.data, models, split=args.split, num_cases=args.cases,
                       samples=args.samples, replications=args.replications, seed=args.seed,
                       body=not args.joints_only, evaluator=args.evaluator,
-                      batch_size=args.batch_size)
+                      vertex_stride=args.vertex_stride, batch_size=args.batch_size)
     paths = write_report(report, args.out)
     print(format_markdown(report))
     print(f"wrote {paths[0]} and {paths[1]}", file=sys.stderr)
@@ -273,6 +273,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--evaluator", default=None, help="text-motion evaluator workdir (optional)")
     p.add_argument("--joints-only", action="store_true",
                    help="fast joint-sphere body instead of fitted SMPL-X meshes")
+    p.add_argument("--vertex-stride", type=int, default=4,
+                   help="use every Nth body vertex for the signed distances (default 4; 1 = all)")
     p.add_argument("--batch-size", type=int, default=16)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="results", help="output folder (default: results)")

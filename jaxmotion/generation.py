@@ -102,8 +102,9 @@ def _resolve_checkpoints(checkpoints) -> tuple[Path, Path]:
     if isinstance(checkpoints, (tuple, list)):
         if len(checkpoints) != 2:
             raise GenerateError("checkpoints as a pair must be (ADM, AMDM) workdirs or files")
-        paths = [Path(p) for p in checkpoints]
-        paths = [p if p.suffix == ".safetensors" else p / "model.safetensors" for p in paths]
+        from jaxmotion.train.export import weights_path
+
+        paths = [weights_path(p) for p in checkpoints]
     else:
         folder = Path(checkpoints)
         paths = [folder / "adm.safetensors", folder / "amdm.safetensors"]
@@ -192,13 +193,12 @@ def _embed(text: str, cache_dir: Path | None) -> np.ndarray:
 
 
 def _weights_config(path) -> dict:
-    """The config stored in a weights file's metadata (without reading its tensors)."""
-    from safetensors import safe_open
+    """The config stored in a weights file (:func:`jaxmotion.train.export.read_config`)."""
+    from jaxmotion.train.export import read_config
 
     try:
-        with safe_open(str(path), framework="numpy") as f:
-            return json.loads((f.metadata() or {})["config"])
-    except (OSError, KeyError, ValueError) as e:
+        return read_config(path)
+    except (OSError, ValueError) as e:
         raise GenerateError(f"{path}: not a jaxmotion weights file ({e})") from e
 
 
@@ -227,14 +227,14 @@ def _aot_call(cache_dir: Path | None, name: str, fingerprint: str, build, args):
     import jax
     from jax import export as jexport
 
-    fingerprint = _digest(fingerprint, [(np.shape(a), str(np.asarray(a).dtype)) for a in args])
+    specs = [jax.ShapeDtypeStruct(np.shape(a), np.asarray(a).dtype) for a in args]
+    fingerprint = _digest(fingerprint, [(s.shape, str(s.dtype)) for s in specs])
     path = None if cache_dir is None else Path(cache_dir) / f"{name}-{fingerprint}.jaxexport"
     if path is not None and path.is_file():
         try:
             return jexport.deserialize(bytearray(path.read_bytes())).call(*args)
         except Exception:  # noqa: BLE001 - a stale or damaged artefact is rebuilt below
             path.unlink(missing_ok=True)
-    specs = [jax.ShapeDtypeStruct(np.shape(a), np.asarray(a).dtype) for a in args]
     exp = jexport.export(jax.jit(build()))(*specs)
     if path is not None:
         try:
@@ -393,6 +393,12 @@ def _centres(lo, hi, size: float) -> list[np.ndarray]:
     return [np.array([x, y]) for x in axes[0] for y in axes[1]]
 
 
+def _object_centre(obj, lo, hi, size: float) -> np.ndarray:
+    """A square centre on the object's xy box centre, kept inside the room (:func:`_clamp_centre`)."""
+    c = 0.5 * (np.asarray(obj["bbox_min"][:2]) + np.asarray(obj["bbox_max"][:2]))
+    return _clamp_centre(c, lo, hi, size)
+
+
 def _clamp_centre(c, lo, hi, size: float) -> np.ndarray:
     """Move a square centre so the square stays inside [lo, hi] where the room allows."""
     half = 0.5 * size
@@ -445,7 +451,7 @@ def generate(
     from jaxmotion._jax_setup import enable_compilation_cache
     from jaxmotion.config import config_from_dict
     from jaxmotion.data.config import CropConfig
-    from jaxmotion.data.crop import CropSpec, crop_at
+    from jaxmotion.data.crop import CropSpec, crop_at, model_colors
     from jaxmotion.sample import SamplerSpec
 
     xla_cache = enable_compilation_cache()
@@ -488,9 +494,7 @@ def generate(
     lap("load")
 
     if object_id is not None:
-        obj = _object(room, object_id)
-        centre = _clamp_centre(0.5 * (np.asarray(obj["bbox_min"][:2]) + np.asarray(obj["bbox_max"][:2])),
-                               lo, hi, spec.size)
+        centre = _object_centre(_object(room, object_id), lo, hi, spec.size)
         chosen = int(object_id)
     else:
         centre, chosen = _choose_region(get_pipe, room, text, emb, spec, k_tiles, sampler, seed,
@@ -501,7 +505,7 @@ def generate(
         pick, pts, shift, rot = crop_at(rng, room.xyz, centre, spec)
     except ValueError as e:
         raise GenerateError(f"the scene has no points near the chosen region: {e}") from e
-    colors = (2.0 * room.rgb[pick] - 1.0).astype(np.float32)
+    colors = model_colors(room.rgb[pick])
     k = int(samples)
     tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))  # noqa: E731
 
@@ -619,17 +623,17 @@ def mentioned_objects(room, text: str) -> list[dict]:
 
 
 def _crops(room, centres, spec, seed: int, tag: int):
-    """Crops at several centres (skipping ones with no point): lists of (pick, points, colours,
-    shift, centre)."""
-    from jaxmotion.data.crop import crop_at
+    """Crops at several centres, skipping ones with no point: a list of
+    ``(index into centres, pick, points, colours)``."""
+    from jaxmotion.data.crop import crop_at, model_colors
 
     out = []
     for i, c in enumerate(centres):
         try:
-            pick, p, shift, _ = crop_at(np.random.default_rng([int(seed), tag, i]), room.xyz, c, spec)
+            pick, p, _, _ = crop_at(np.random.default_rng([int(seed), tag, i]), room.xyz, c, spec)
         except ValueError:  # a tile outside an L-shaped room
             continue
-        out.append((pick, p, (2.0 * room.rgb[pick] - 1.0).astype(np.float32), shift, c))
+        out.append((i, pick, p, model_colors(room.rgb[pick])))
     return out
 
 
@@ -638,7 +642,7 @@ def _adm_maps(get_pipe, crops, emb, key, sampler) -> np.ndarray:
 
     b = len(crops)
     return np.asarray(jax.device_get(get_pipe().sample_affordance(
-        key, np.stack([c[1] for c in crops]), np.stack([c[2] for c in crops]),
+        key, np.stack([c[2] for c in crops]), np.stack([c[3] for c in crops]),
         np.broadcast_to(emb[0], (b, emb.shape[1])), sampler)))
 
 
@@ -654,17 +658,16 @@ def _choose_region(get_pipe, room, text, emb, spec, key, sampler, seed, lo, hi):
     """
     candidates = mentioned_objects(room, text)
     if candidates:
-        centres = [_clamp_centre(0.5 * (np.asarray(o["bbox_min"][:2]) + np.asarray(o["bbox_max"][:2])),
-                                 lo, hi, spec.size) for o in candidates]
+        centres = [_object_centre(o, lo, hi, spec.size) for o in candidates]
         if len(candidates) == 1:
             return centres[0], candidates[0]["id"]
         crops = _crops(room, centres, spec, seed, 2)
         maps = _adm_maps(get_pipe, crops, emb, key, sampler)
         scores = []
-        for (pick, *_), a, o in zip(crops, maps, candidates, strict=True):
-            on = room.instance[pick] == o["id"]
+        for (i, pick, *_), a in zip(crops, maps, strict=True):
+            on = room.instance[pick] == candidates[i]["id"]
             scores.append(float(a[on].max(axis=-1).mean()) if on.any() else -1.0)
-        i = int(np.argmax(scores))
+        i = crops[int(np.argmax(scores))][0]
         return centres[i], candidates[i]["id"]
     tiles = _centres(lo, hi, spec.size)
     if len(tiles) == 1:
@@ -672,7 +675,7 @@ def _choose_region(get_pipe, room, text, emb, spec, key, sampler, seed, lo, hi):
     crops = _crops(room, tiles, spec, seed, 3)
     maps = _adm_maps(get_pipe, crops, emb, key, sampler)
     scores = [float(np.sort(a[:, 0])[-32:].mean()) for a in maps]
-    return np.asarray(crops[int(np.argmax(scores))][4]), None
+    return np.asarray(tiles[crops[int(np.argmax(scores))][0]]), None
 
 
 def summary(res: Generation) -> str:

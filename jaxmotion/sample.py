@@ -68,8 +68,9 @@ class AffordancePipeline:
     @classmethod
     def from_workdirs(cls, adm_workdir, amdm_workdir) -> "AffordancePipeline":
         """From two training workdirs (their ``model.safetensors``), or the files themselves."""
-        return cls.from_files(*(p if Path(p).suffix == ".safetensors" else Path(p) / "model.safetensors"
-                                for p in (adm_workdir, amdm_workdir)))
+        from jaxmotion.train.export import weights_path
+
+        return cls.from_files(weights_path(adm_workdir), weights_path(amdm_workdir))
 
     @classmethod
     def from_files(cls, adm_file, amdm_file) -> "AffordancePipeline":

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Crop", "CropSpec", "crop_at", "crop_sample", "motion_features", "features_to_joints"]
+__all__ = ["Crop", "CropSpec", "crop_at", "crop_sample", "model_colors", "motion_features", "features_to_joints"]
 
 
 @dataclass(frozen=True)
@@ -112,7 +112,7 @@ def crop_sample(
         ) from None
     return Crop(
         points=pts,
-        colors=(2.0 * rgb[pick] - 1.0).astype(np.float32),
+        colors=model_colors(rgb[pick]),
         target_mask=np.asarray(instance[pick] == target_id),
         joints=((joints - shift) @ rot.T).astype(np.float32),
         mask=mask,
@@ -120,6 +120,11 @@ def crop_sample(
         shift=shift,
         indices=pick,
     )
+
+
+def model_colors(rgb) -> np.ndarray:
+    """Colours in [0, 1] as the models read them: float32 in [−1, 1]."""
+    return (2.0 * np.asarray(rgb) - 1.0).astype(np.float32)
 
 
 def crop_at(

@@ -77,11 +77,10 @@ def parse_model(text: str) -> ModelSpec:
 def _physical_fn(body: bool, fps: float):
     """Jitted ``(points, target_mask, joints [K,T,22,3], mask, anchor) -> metrics [K]`` (+ APD)."""
     import jax
-    import jax.numpy as jnp
 
     from jaxmotion.eval.metrics import (apd, contact, foot_skating, goal_distance,
-                                        joint_sphere_sdf, joint_sphere_sdf_frames, non_collision,
-                                        signed_distance_to_body_frames)
+                                        joint_sphere_sdf_frames, joints_goal_distance,
+                                        non_collision, signed_distance_to_body_frames)
 
     def one(points, target_mask, joints, mask, anchor, verts, normals):
         if body:
@@ -89,8 +88,7 @@ def _physical_fn(body: bool, fps: float):
             goal = goal_distance(points, verts[anchor], normals[anchor], target_mask=target_mask)
         else:
             sdf = joint_sphere_sdf_frames(points, joints)
-            s = joint_sphere_sdf(points, joints[anchor])
-            goal = jnp.min(jnp.where(target_mask, jnp.maximum(0.0, -s), jnp.inf))
+            goal = joints_goal_distance(points, joints[anchor], target_mask=target_mask)
         skate = foot_skating(joints, mask, fps=fps)
         skate = skate["skate_ratio"]
         return {"goal_distance": goal, "contact": contact(sdf, mask=mask),
@@ -253,8 +251,10 @@ def evaluate(
             "seconds": time.perf_counter() - t_model,
         }
     if ground_truth:
-        pipe = AffordancePipeline.from_workdirs(models[0].adm, models[0].amdm)
-        cases, _ = load_cases(data_dir, split, pipe.amdm_config, num_cases=num_cases, seed=seed)
+        from jaxmotion.train.export import read_config
+
+        cases, _ = load_cases(data_dir, split, read_config(models[0].amdm), num_cases=num_cases,
+                              seed=seed)
         gt = np.stack([c["gt"] for c in cases])[:, None]
         rows = _score_cases(cases, gt, None, phys, body, fps, [], None, vertex_stride)
         report["ground_truth"] = {k: float(np.nanmean([r[k] for r in rows])) for k in rows[0]}
@@ -263,11 +263,9 @@ def evaluate(
 
 
 def _adm_arch(adm) -> str:
-    from jaxmotion.train.export import load_weights
+    from jaxmotion.train.export import read_config
 
-    path = Path(adm)
-    path = path if path.suffix == ".safetensors" else path / "model.safetensors"
-    return str(load_weights(path)[1]["model"].get("arch", "perceiver"))
+    return str(read_config(adm)["model"].get("arch", "perceiver"))
 
 
 # --------------------------------------------------------------------------- report

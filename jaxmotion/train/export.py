@@ -61,6 +61,26 @@ def save_weights(path, params, batch_stats, config: dict, extra: dict | None = N
     return Path(path)
 
 
+def weights_path(path) -> Path:
+    """A ``.safetensors`` file as given, or a training workdir's ``model.safetensors``."""
+    path = Path(path)
+    return path if path.suffix == ".safetensors" else path / "model.safetensors"
+
+
+def read_config(path) -> dict:
+    """The config stored in a weights file (or workdir), without reading its tensors."""
+    from safetensors import safe_open
+
+    path = weights_path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no trained weights here")
+    with safe_open(str(path), framework="numpy") as f:
+        meta = f.metadata() or {}
+    if "config" not in meta:
+        raise ValueError(f"{path}: not a jaxmotion weights file (no config in its metadata)")
+    return json.loads(meta["config"])
+
+
 def load_weights(path) -> tuple[dict[str, np.ndarray], dict]:
     """Read ``(flat tensors, config dict)`` from a ``model.safetensors``."""
     from safetensors import safe_open

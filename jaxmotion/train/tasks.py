@@ -282,13 +282,12 @@ def load_adm(workdir):
     file (one read of the file)."""
     from jaxmotion.diffusion import make_schedule
     from jaxmotion.models import ADMConfig, make_adm
-    from jaxmotion.train.export import abstract_module, apply_weights, load_weights
+    from jaxmotion.train.export import abstract_module, apply_weights, load_weights, weights_path
 
     if not workdir:
         raise ValueError("predicted_fraction > 0 needs a trained ADM: set adm_workdir=DIR (or "
                          "predicted_fraction=0 to train on ground-truth affordance only)")
-    path = Path(workdir)
-    path = path if path.suffix == ".safetensors" else path / "model.safetensors"
+    path = weights_path(workdir)
     src = str(path)
     tensors, saved = load_weights(path)
     backbone = load_backbone(tensors=tensors, model_config=saved["backbone_model"],

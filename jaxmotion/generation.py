@@ -216,19 +216,28 @@ def _digest(*parts) -> str:
     return h.hexdigest()[:32]
 
 
+@functools.lru_cache(maxsize=1)
+def _code_digest() -> str:
+    """sha256 of jaxmotion's own sources: a cached program is never reused after the code that
+    traced it changed (an edit without a version bump included)."""
+    root = Path(__file__).parent
+    return _digest(*(x for f in sorted(root.rglob("*.py")) for x in (str(f.relative_to(root)), f)))
+
+
 def _aot_call(cache_dir: Path | None, name: str, fingerprint: str, build, args):
     """``build()(*args)`` through a serialized ``jax.export`` artefact in ``cache_dir``.
 
     A new process otherwise spends seconds re-tracing the samplers and the LBFGS fit (and
     building the networks) before the persistent compilation cache can even be consulted;
     the artefact holds the traced program (weights included), so a repeated command only
-    deserializes it. ``fingerprint`` must change with anything that changes the program.
+    deserializes it. ``fingerprint`` must change with anything else that changes the program
+    (weights, sampler, versions); argument shapes and jaxmotion's sources are added here.
     """
     import jax
     from jax import export as jexport
 
     specs = [jax.ShapeDtypeStruct(np.shape(a), np.asarray(a).dtype) for a in args]
-    fingerprint = _digest(fingerprint, [(s.shape, str(s.dtype)) for s in specs])
+    fingerprint = _digest(fingerprint, _code_digest(), [(s.shape, str(s.dtype)) for s in specs])
     path = None if cache_dir is None else Path(cache_dir) / f"{name}-{fingerprint}.jaxexport"
     if path is not None and path.is_file():
         try:

@@ -203,3 +203,22 @@ def test_text_embedding_cache(tmp_path):
     np.testing.assert_allclose(fresh, _text_encoder()(["sit on the sofa"]), atol=1e-6)
     next(tmp_path.glob("*.npy")).write_bytes(b"broken")  # a damaged entry is recomputed
     np.testing.assert_array_equal(_embed("sit on the sofa", tmp_path), fresh)
+
+
+def test_exported_programs_are_reused_only_for_the_same_code_and_shapes(tmp_path, monkeypatch):
+    import jaxmotion.generation as G
+
+    calls = []
+
+    def build():
+        calls.append(1)
+        return lambda x: x * 2.0
+
+    x = np.arange(3, dtype=np.float32)
+    np.testing.assert_array_equal(G._aot_call(tmp_path, "f", "v1", build, (x,)), 2 * x)
+    np.testing.assert_array_equal(G._aot_call(tmp_path, "f", "v1", build, (x,)), 2 * x)
+    assert len(calls) == 1 and len(list(tmp_path.glob("f-*.jaxexport"))) == 1
+    G._aot_call(tmp_path, "f", "v1", build, (np.arange(4, dtype=np.float32),))  # new shape
+    monkeypatch.setattr(G, "_code_digest", lambda: "edited sources")
+    G._aot_call(tmp_path, "f", "v1", build, (x,))  # the code changed: traced again
+    assert len(calls) == 3 and len(list(tmp_path.glob("f-*.jaxexport"))) == 3

@@ -132,9 +132,6 @@ def _text_encoder():
     return load_text_encoder("minilm")
 
 
-MAX_TEXT_TOKENS = 256  # the text encoder's max_seq_length, [CLS] and [SEP] included
-
-
 @functools.lru_cache(maxsize=1)
 def _tokenizer():
     """MiniLM's tokenizer without truncation (to count tokens before the encoder is loaded)."""
@@ -154,10 +151,12 @@ def _check_text(text) -> str:
     text = " ".join(text.split())
     if not text:
         raise GenerateError('text is empty; describe the motion, e.g. "sit on the chair"')
-    n = len(_tokenizer().encode(text).ids)
-    if n > MAX_TEXT_TOKENS:
+    from jaxmotion.text.minilm import max_seq_length
+
+    n, limit = len(_tokenizer().encode(text).ids), max_seq_length()
+    if n > limit:
         raise GenerateError(f"text is too long ({n} tokens; the text encoder reads at most "
-                            f"{MAX_TEXT_TOKENS}): shorten it to one or two sentences")
+                            f"{limit}): shorten it to one or two sentences")
     return text
 
 

@@ -355,17 +355,24 @@ class TextEncoder:
         return f"TextEncoder(name={self.name!r}, dim={self.dim}, max_length={self.max_length})"
 
 
+def max_seq_length(folder=None) -> int:
+    """Tokens the encoder reads, ``[CLS]`` and ``[SEP]`` included: sentence-transformers'
+    ``max_seq_length`` (256), at most the model's positions."""
+    folder = Path(folder) if folder is not None else minilm_dir()
+    max_length = 256
+    st_cfg = folder / "sentence_bert_config.json"
+    if st_cfg.is_file():
+        max_length = int(json.loads(st_cfg.read_text()).get("max_seq_length", max_length))
+    return min(max_length, BertConfig.from_hf(folder / "config.json").max_positions)
+
+
 def load_minilm(folder=None, *, batch_size: int = 64) -> TextEncoder:
     """The all-MiniLM-L6-v2 :class:`TextEncoder`, from ``folder`` or the installed package."""
     from tokenizers import Tokenizer
 
     folder = Path(folder) if folder is not None else minilm_dir()
     model = load_minilm_weights(folder)
-    max_length = 256
-    st_cfg = folder / "sentence_bert_config.json"
-    if st_cfg.is_file():
-        max_length = int(json.loads(st_cfg.read_text()).get("max_seq_length", max_length))
-    max_length = min(max_length, model.cfg.max_positions)
+    max_length = max_seq_length(folder)
     tok = Tokenizer.from_file(str(folder / "tokenizer.json"))
     # tokenizer.json ships truncation/padding at 128; sentence-transformers overrides both.
     tok.no_padding()

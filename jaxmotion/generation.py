@@ -161,33 +161,25 @@ def _check_text(text) -> str:
 
 
 def _embed(text: str, cache_dir: Path | None) -> np.ndarray:
-    """The MiniLM embedding ``[1, 384]`` of ``text``, from an on-disk cache when this text was
-    embedded before (keyed by the weights file's size and mtime and the text): a repeated
-    command then never loads the encoder."""
-    import hashlib
-
+    """The MiniLM embedding ``[1, 384]`` of ``text``, through the project's on-disk
+    :class:`~jaxmotion.text.EmbeddingCache` keyed by the weights file's size and mtime (its
+    checksum would mean reading 90 MB): a repeated command never loads the encoder."""
+    from jaxmotion.text import EmbeddingCache, cache_key
     from jaxmotion.text.minilm import minilm_dir
 
-    weights = minilm_dir() / "model.safetensors"
-    st = weights.stat()
-    key = hashlib.sha256(f"minilm|{st.st_size}|{st.st_mtime_ns}|{text}".encode()).hexdigest()
-    path = None if cache_dir is None else Path(cache_dir) / f"{key}.npy"
-    if path is not None and path.is_file():
-        try:
-            emb = np.load(path)
-            if emb.shape == (1, 384) and np.isfinite(emb).all():
-                return emb
-        except (OSError, ValueError):
-            pass  # a damaged entry: recompute it
+    if cache_dir is None:
+        return np.asarray(_text_encoder()([text]), np.float32)
+    st = (minilm_dir() / "model.safetensors").stat()
+    key = cache_key("minilm", f"size={st.st_size},mtime={st.st_mtime_ns}", text)
+    cache = EmbeddingCache(cache_dir)
+    hit = cache.get([key])
+    if key in hit:
+        return np.asarray(hit[key], np.float32)[None]
     emb = np.asarray(_text_encoder()([text]), np.float32)
-    if path is not None:
-        try:
-            from jaxmotion._atomic import atomic_open
-
-            with atomic_open(path, "wb") as f:
-                np.save(f, emb)
-        except OSError:
-            pass  # read-only cache: fine
+    try:
+        cache.put([key], emb)
+    except OSError:
+        pass  # read-only cache: fine
     return emb
 
 

@@ -127,11 +127,11 @@ def load_backbone(workdir=None, *, tensors=None, model_config=None, prefix="", s
     """The frozen segmentation backbone, from ``<workdir>/model.safetensors`` or from tensors
     and a model config (as embedded in an ADM weights file)."""
     from jaxmotion.models import PointTransformerConfig, PointTransformerSeg
-    from jaxmotion.train.export import abstract_module, apply_weights, load_weights
+    from jaxmotion.train.export import abstract_module, apply_weights, load_weights, weights_path
 
     if workdir is not None:
         source = f"{workdir}/model.safetensors"
-        tensors, saved = load_weights(Path(workdir) / "model.safetensors")
+        tensors, saved = load_weights(weights_path(workdir))
         model_config = saved["model"]
     pt_cfg = config_from_dict(PointTransformerConfig, model_config)
     net = abstract_module(lambda: PointTransformerSeg(pt_cfg, rngs=nnx.Rngs(0)))

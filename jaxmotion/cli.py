@@ -263,9 +263,10 @@ def build_parser() -> argparse.ArgumentParser:
         "results.md (mean ± 95 % interval) to --out.",
     )
     p.add_argument("--data", required=True, help="dataset folder (jaxmotion synth)")
-    p.add_argument("--model", action="append", required=True, metavar="NAME=ADM,AMDM[,SAMPLER]",
+    p.add_argument("--model", action="append", required=True, metavar="NAME=ADM,AMDM[,SAMPLER][,OPT=G]",
                    help="a row: name, ADM and AMDM workdirs (or .safetensors), sampler ddimN "
-                   "(default ddim50) or ddpm; repeat for more rows")
+                   "(default ddim50) or ddpm, and optionally adm_guidance=G / amdm_guidance=G "
+                   "(classifier-free guidance scale per stage, default 1); repeat for more rows")
     p.add_argument("--split", default="test", choices=("train", "val", "test"))
     p.add_argument("--cases", type=int, default=64, help="cases from the split (default 64)")
     p.add_argument("--samples", type=int, default=4, help="samples per case, K (default 4)")

@@ -184,7 +184,10 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
                seed: int = 0, num_points: int | None = None) -> tuple[list[dict], Any]:
     """The first ``num_cases`` samples of a split as model inputs: crops as in training (the
     AMDM run's ``crop`` config, no rotation), padded to its ``max_frames``. Each case: ``text``,
-    ``action``, ``points``, ``colors``, ``mask``, ``gt`` joints, ``target_mask``, ``rotation``,
+    ``action``, ``points``, ``colors``, ``mask``, ``gt`` joints, ``target_mask`` (the target
+    instance's points), ``target_class_mask`` (the points of every object of the target's
+    semantic class, as the grounding metrics of the paper use; the instance when the scene
+    has no semantic labels), ``rotation``,
     ``shift`` (``x_world = x_crop @ rotation + shift``), ``file``."""
     from jaxmotion.config import config_from_dict
     from jaxmotion.data.config import CropConfig
@@ -204,8 +207,14 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
         s = load_sample(f)
         with np.load(Path(data_dir) / "scenes" / f"{s['scene_id']}.npz") as sc:
             xyz, rgb, inst = sc["xyz"], sc["rgb"], sc["instance"]
+            sem = sc["semantic"] if "semantic" in sc.files else None
         c = crop_sample(np.random.default_rng([seed, i]), xyz, rgb, inst, s["joints"], s["mask"],
                         s["target_id"], spec)
+        class_mask = c.target_mask
+        if sem is not None and (inst == s["target_id"]).any():
+            labels, counts = np.unique(sem[inst == s["target_id"]], return_counts=True)
+            target_class = labels[np.argmax(counts)]
+            class_mask = sem[c.indices] == target_class
         t = min(len(s["mask"]), max_frames)
         mask = np.zeros(max_frames, bool)
         mask[:t] = s["mask"][:t]
@@ -213,6 +222,7 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
         gt[:t] = c.joints[:t]
         cases.append(dict(text=str(s["text"]), action=str(s["action"]), points=c.points,
                           colors=c.colors, mask=mask, gt=gt, target_mask=c.target_mask,
+                          target_class_mask=class_mask,
                           rotation=c.rotation, shift=c.shift, file=f.name))
     return cases, spec
 

@@ -12,9 +12,44 @@ def test_parse_model():
     assert parse_model("a=x,y") == ModelSpec("a", "x", "y", "ddim", 50)
     assert parse_model("b=x,y,ddim10").steps == 10
     assert parse_model("c=x,y,DDPM").method == "ddpm"
-    for bad in ("a", "a=x", "=x,y", "a=x,y,ddim0", "a=x,y,euler"):
+    for bad in ("a", "a=x", "=x,y", "a=x,y,ddim0", "a=x,y,euler", "a=x,adm_guidance=2,y",
+                "a=x,y,ddim5,guidance=2", "a=x,y,adm_guidance=two", "a=x,y,amdm_guidance=0"):
         with pytest.raises(ValueError, match="--model"):
             parse_model(bad)
+
+
+def test_parse_model_guidance_per_stage():
+    m = parse_model("g=x,y,ddim20,adm_guidance=2.5")
+    assert (m.steps, m.adm_guidance, m.amdm_guidance) == (20, 2.5, 1.0)
+    assert m.sampler_label == "DDIM-20 (ADM w=2.5)"
+    m = parse_model("g=x,y,amdm_guidance=3,adm_guidance=2")
+    assert (m.method, m.steps, m.adm_guidance, m.amdm_guidance) == ("ddim", 50, 2.0, 3.0)
+    assert m.sampler_label == "DDIM-50 (ADM w=2, AMDM w=3)"
+    assert parse_model("g=x,y").sampler_label == "DDIM-50"
+
+
+def test_cases_carry_the_target_class_mask(tiny_runs):
+    """The class mask (the paper's grounding target) holds every point of the target's semantic
+    class: a superset of the instance mask, and exactly the class's points of the crop."""
+    from jaxmotion.data.format import load_sample
+    from jaxmotion.sample import load_cases
+    from jaxmotion.train.export import read_config
+
+    root, out = tiny_runs
+    cases, _ = load_cases(out["data"], "test", read_config(root / "amdm"), num_cases=3)
+    for c in cases:
+        inst, cls = c["target_mask"], c["target_class_mask"]
+        assert cls.shape == inst.shape and not (inst & ~cls).any()
+        s = load_sample(out["data"] / "samples" / "test" / c["file"])
+        with np.load(out["data"] / "scenes" / f"{s['scene_id']}.npz") as sc:
+            xyz, sem, ids = sc["xyz"], sc["semantic"], sc["instance"]
+        target_class = np.unique(sem[ids == s["target_id"]])
+        assert len(target_class) == 1
+        # find each crop point in the room (brute force) and read its label there
+        world = c["points"] @ c["rotation"] + c["shift"]
+        nearest = np.argmin(((world[:, None, :2] - xyz[None, :, :2]) ** 2).sum(-1)
+                            + (world[:, None, 2] - xyz[None, :, 2]) ** 2, axis=1)
+        np.testing.assert_array_equal(cls, sem[nearest] == target_class[0])
 
 
 def test_interval_is_the_normal_95_percent_half_width():
@@ -38,9 +73,12 @@ def test_runner_over_tiny_runs(tiny_runs, tmp_path, body):
     m = rep["models"]["two"]
     assert m["sampler"] == "DDIM-2" and m["two_stage"] and len(m["replications"]) == 2
     s = m["summary"]
-    for k in ("goal_distance", "contact", "non_collision", "apd", "skating", "success@0.3"):
+    for k in ("goal_distance", "contact", "non_collision", "apd", "skating", "success@0.3",
+              "instance_success@0.3"):
         assert s[k]["n"] == 2 and np.isfinite(s[k]["mean"]), k
     assert 0.0 <= s["non_collision"]["mean"] <= 1.0 and s["goal_distance"]["mean"] >= 0.0
+    # the class mask contains the instance mask, so class success is never below instance success
+    assert s["success@0.3"]["mean"] >= s["instance_success@0.3"]["mean"]
     assert s["apd"]["mean"] > 0.0  # two different samples per case
     assert (m["body_fit_error_m"] is not None) == body
     md = (tmp_path / "results.md").read_text()

@@ -107,6 +107,18 @@ def _cmd_sample(args: argparse.Namespace) -> int:
     return 0
 
 
+def _guidance_arg(text: str):
+    """``--guidance G`` or ``--guidance ADM,AMDM`` (argparse type)."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) not in (1, 2) or not all(v > 0 for v in values):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: give one positive scale (both stages) or two, ADM,AMDM, e.g. 2,1")
+    return values[0] if len(values) == 1 else values
+
+
 def _cmd_generate(args: argparse.Namespace) -> int:
     import time
 
@@ -244,7 +256,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", type=int, default=1, help="motions to sample (K, default 1)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--steps", type=int, default=20, help="DDIM steps per stage (default 20)")
-    p.add_argument("--guidance", type=float, default=1.0, help="classifier-free guidance scale")
+    p.add_argument("--guidance", type=_guidance_arg, default=None, metavar="G|ADM,AMDM",
+                   help="classifier-free guidance scale of both stages, or one per stage "
+                   "(default: the shipped checkpoints' tuned scales; 1 = no guidance)")
     p.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
     p.add_argument("--checkpoints", nargs="+", default=None, metavar="PATH",
                    help="a folder with adm.safetensors and amdm.safetensors, or the ADM and "

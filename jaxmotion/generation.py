@@ -54,6 +54,9 @@ __all__ = [
 ]
 
 DEFAULT_TEXT = "sit on the chair next to the table"
+#: Classifier-free guidance scales (ADM, AMDM) of the shipped checkpoints, chosen on the
+#: synthetic validation cases (docs/results.md, "Guidance").
+DEFAULT_GUIDANCE: tuple[float, float] = (1.0, 1.0)
 DEMO_SEED = 22  # a dining room (L-shaped, 4.3 x 6.0 m) with one table and one chair by it
 DEMO_POINTS = 60_000
 OUTPUT_FILES = ("motion.npz", "motion.bvh", "motion.glb", "motion.gif", "viewer.html")
@@ -277,7 +280,7 @@ class Generation:
       rotation ``[3,3]``, shift ``[3]``: the crop frame, ``x_scene = x_crop @ rotation + shift``.
       object_id: as passed; target_id: the object the region was centred on (``object_id``, or
         the one chosen from the text; None when the region came from tiling the room).
-      seed, steps: as passed.
+      seed, steps: as passed; guidance: the ``(ADM, AMDM)`` guidance scales used.
       timings: seconds per stage.
     """
 
@@ -298,6 +301,7 @@ class Generation:
     seed: int
     steps: int
     timings: dict
+    guidance: tuple[float, float] = (1.0, 1.0)
 
     @property
     def num_samples(self) -> int:
@@ -339,6 +343,7 @@ class Generation:
                          object_id=np.int64(-1 if self.object_id is None else self.object_id),
                          target_id=np.int64(-1 if self.target_id is None else self.target_id),
                          seed=np.int64(self.seed), steps=np.int64(self.steps),
+                         guidance=np.asarray(self.guidance, np.float32),
                          scene_name=np.array(self.scene.name))
             p = self.smplx
             i = int(bvh_sample)
@@ -411,6 +416,21 @@ def _clamp_centre(c, lo, hi, size: float) -> np.ndarray:
     return out
 
 
+def _guidance_pair(guidance) -> tuple[float, float]:
+    """``None`` / one scale / an ``(ADM, AMDM)`` pair → two positive floats."""
+    if guidance is None:
+        return DEFAULT_GUIDANCE
+    pair = (guidance, guidance) if np.ndim(guidance) == 0 else tuple(guidance)
+    try:
+        pair = tuple(float(g) for g in pair)
+    except (TypeError, ValueError):
+        pair = ()
+    if len(pair) != 2 or not all(np.isfinite(g) and g > 0 for g in pair):
+        raise GenerateError(f"guidance must be a positive number or an (ADM, AMDM) pair of them "
+                            f"(1 = no guidance), got {guidance!r}")
+    return pair
+
+
 # --------------------------------------------------------------------------- main
 def generate(
     scene,
@@ -420,7 +440,7 @@ def generate(
     samples: int = 1,
     seed: int = 0,
     steps: int = 20,
-    guidance: float = 1.0,
+    guidance: float | tuple[float, float] | None = None,
     checkpoints=None,
     num_points: int | None = None,
     fit: bool = True,
@@ -435,7 +455,9 @@ def generate(
       text: the instruction (one or two sentences).
       object_id: target the object with this instance id instead of finding it from the text.
       samples: K motions, batched by vmap; seed: the PRNG seed (same seed, same output).
-      steps: DDIM steps of each stage (ADM and AMDM); guidance: classifier-free guidance scale.
+      steps: DDIM steps of each stage (ADM and AMDM).
+      guidance: classifier-free guidance scale, one for both stages or an ``(ADM, AMDM)``
+        pair; None: :data:`DEFAULT_GUIDANCE` (1 = no guidance).
       checkpoints: None (shipped), a folder with ``adm.safetensors`` / ``amdm.safetensors``, or
         an ``(adm, amdm)`` pair of workdirs / files.
       num_points: surface samples taken from a mesh (default 100k); point clouds keep theirs.
@@ -488,7 +510,9 @@ def generate(
     emb = _embed(text, xla_cache / "text-embeddings")
     key = jax.random.key(int(seed))
     k_tiles, k_main = jax.random.split(key)
-    sampler = SamplerSpec(method="ddim", steps=int(steps), guidance=float(guidance))
+    adm_w, amdm_w = _guidance_pair(guidance)
+    adm_sampler = SamplerSpec(method="ddim", steps=int(steps), guidance=adm_w)
+    amdm_sampler = SamplerSpec(method="ddim", steps=int(steps), guidance=amdm_w)
     aot_dir = xla_cache / "programs" if aot else None
     versions = (jax.__version__, __version__)
     lap("load")
@@ -497,7 +521,7 @@ def generate(
         centre = _object_centre(_object(room, object_id), lo, hi, spec.size)
         chosen = int(object_id)
     else:
-        centre, chosen = _choose_region(get_pipe, room, text, emb, spec, k_tiles, sampler, seed,
+        centre, chosen = _choose_region(get_pipe, room, text, emb, spec, k_tiles, adm_sampler, seed,
                                         lo, hi)
         lap("region")
     rng = np.random.default_rng([int(seed), 1])
@@ -512,11 +536,12 @@ def generate(
     def build_sampler():
         pipe = get_pipe()
         return lambda kd, p, c, e, m: pipe.sample(jax.random.wrap_key_data(kd), p, c, e, m,
-                                                  adm=sampler, amdm=sampler)
+                                                  adm=adm_sampler, amdm=amdm_sampler)
 
     args = (np.asarray(jax.random.key_data(k_main)), tile(pts), tile(colors),
             tile(emb[0]), np.ones((k, t_frames), bool))
-    res = _aot_call(aot_dir, "sample", _digest(versions, sampler, Path(adm_file), Path(amdm_file)),
+    res = _aot_call(aot_dir, "sample", _digest(versions, adm_sampler, amdm_sampler, Path(adm_file),
+                                              Path(amdm_file)),
                     build_sampler, args)
     res = jax.device_get(res)
     joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
@@ -545,7 +570,7 @@ def generate(
         fit_error=err, crop_xyz=room.xyz[pick].astype(np.float32),
         crop_rgb=room.rgb[pick].astype(np.float32), affordance=aff, rotation=rot, shift=shift,
         object_id=None if object_id is None else int(object_id), target_id=chosen,
-        seed=int(seed), steps=int(steps),
+        seed=int(seed), steps=int(steps), guidance=(adm_w, amdm_w),
         timings=times,
     )
 

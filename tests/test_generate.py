@@ -109,11 +109,34 @@ def test_object_id_centres_the_crop_on_the_object(ckpt):
     (dict(samples=0), "samples must be"),
     (dict(steps=0), "steps must be"),
     (dict(scene="no/such/room.ply"), "no such file"),
+    (dict(guidance=0.0), "guidance must be"),
+    (dict(guidance=(1.0, 2.0, 3.0)), "guidance must be"),
+    (dict(guidance=("a", 1.0)), "guidance must be"),
+    (dict(guidance=float("nan")), "guidance must be"),
 ])
 def test_bad_input_is_a_clear_error(ckpt, kwargs, match):
     args = {"scene": "demo", "text": "sit on the chair", **FAST, **kwargs}
     with pytest.raises(GenerateError, match=match):
         jaxmotion.generate(args.pop("scene"), args.pop("text"), checkpoints=ckpt, **args)
+
+
+def test_guidance_per_stage(result, ckpt):
+    """One scale sets both stages, a pair sets each; the scales change the motion (the ADM's
+    scale also its maps) and are recorded; an AMDM-only scale leaves the ADM maps as they were."""
+    from jaxmotion.generation import DEFAULT_GUIDANCE
+
+    assert result.guidance == DEFAULT_GUIDANCE
+    kw = dict(samples=2, seed=3, checkpoints=ckpt, **FAST)
+    both = jaxmotion.generate("demo", "sit on the chair next to the table", guidance=3.0, **kw)
+    assert both.guidance == (3.0, 3.0)
+    assert not np.allclose(both.joints, result.joints, atol=1e-4)
+    base = jaxmotion.generate("demo", "sit on the chair next to the table", guidance=(1.0, 1.0),
+                              **kw)
+    motion_only = jaxmotion.generate("demo", "sit on the chair next to the table",
+                                     guidance=(1.0, 3.0), **kw)
+    assert motion_only.guidance == (1.0, 3.0)
+    np.testing.assert_allclose(motion_only.affordance, base.affordance, atol=1e-6)
+    assert not np.allclose(motion_only.joints, base.joints, atol=1e-4)
 
 
 def test_checkpoints_that_do_not_match(ckpt, tmp_path):
@@ -178,6 +201,19 @@ def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
     line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert line["samples"] == 1 and line["frames"] == 120
     assert (out / "motion.bvh").is_file() and not (out / "motion.gif").exists()
+    with np.load(out / "motion.npz") as f:
+        from jaxmotion.generation import DEFAULT_GUIDANCE
+
+        np.testing.assert_allclose(f["guidance"], DEFAULT_GUIDANCE)
+    assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
+                 "--guidance", "2,1", "--out", str(tmp_path / "g"), "--checkpoints", *ckpt]) == 0
+    with np.load(tmp_path / "g" / "motion.npz") as f:
+        np.testing.assert_allclose(f["guidance"], [2.0, 1.0])
+    for bad in ("0", "1,2,3", "x"):
+        with pytest.raises(SystemExit):
+            main(["generate", "--guidance", bad, "--out", str(tmp_path / "bad")])
+        assert "--guidance" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
 
 
 @pytest.mark.skipif(not all(p.is_file() for p in default_checkpoints()),

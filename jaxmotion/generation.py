@@ -55,8 +55,10 @@ __all__ = [
 
 DEFAULT_TEXT = "sit on the chair next to the table"
 #: Classifier-free guidance scales (ADM, AMDM) of the shipped checkpoints, chosen on the
-#: synthetic validation cases (docs/results.md, "Guidance").
-DEFAULT_GUIDANCE: tuple[float, float] = (1.0, 1.0)
+#: synthetic validation split (docs/results.md, "Guidance"): w = 5 on the ADM sharpens its
+#: maps to the ground truth's share of high-affordance points (success@0.3 75 → 88 %) with
+#: goal distance unchanged within the noise; guiding the AMDM made motions end farther away.
+DEFAULT_GUIDANCE: tuple[float, float] = (5.0, 1.0)
 DEMO_SEED = 22  # a dining room (L-shaped, 4.3 x 6.0 m) with one table and one chair by it
 DEMO_POINTS = 60_000
 OUTPUT_FILES = ("motion.npz", "motion.bvh", "motion.glb", "motion.gif", "viewer.html")

@@ -280,7 +280,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", action="append", required=True, metavar="NAME=ADM,AMDM[,SAMPLER][,OPT=G]",
                    help="a row: name, ADM and AMDM workdirs (or .safetensors), sampler ddimN "
                    "(default ddim50) or ddpm, and optionally adm_guidance=G / amdm_guidance=G "
-                   "(classifier-free guidance scale per stage, default 1); repeat for more rows")
+                   "(classifier-free guidance scale per stage, default 1) and affordance=gt (the "
+                   "AMDM on ground-truth maps: the AMDM's own error); repeat for more rows")
     p.add_argument("--split", default="test", choices=("train", "val", "test"))
     p.add_argument("--cases", type=int, default=64, help="cases from the split (default 64)")
     p.add_argument("--samples", type=int, default=4, help="samples per case, K (default 4)")

@@ -26,6 +26,28 @@ def test_parse_model_guidance_per_stage():
     assert (m.method, m.steps, m.adm_guidance, m.amdm_guidance) == ("ddim", 50, 2.0, 3.0)
     assert m.sampler_label == "DDIM-50 (ADM w=2, AMDM w=3)"
     assert parse_model("g=x,y").sampler_label == "DDIM-50"
+    m = parse_model("o=x,y,ddim4,affordance=gt")
+    assert m.affordance == "gt" and m.sampler_label == "DDIM-4 (ground-truth maps)"
+    with pytest.raises(ValueError, match="affordance must be adm"):
+        parse_model("o=x,y,affordance=oracle")
+
+
+def test_ground_truth_affordance_row(tiny_runs):
+    """affordance=gt: the AMDM on the dataset's own maps; its own row, no grounding columns
+    (there are no ADM maps to score)."""
+    root, out = tiny_runs
+    adm, amdm = str(root / "adm"), str(root / "amdm")
+    specs = [ModelSpec("adm", adm, amdm, "ddim", 2),
+             ModelSpec("oracle", adm, amdm, "ddim", 2, affordance="gt")]
+    rep = evaluate(out["data"], specs, num_cases=2, samples=2, replications=1, body=False,
+                   batch_size=4, progress=False)
+    o = rep["models"]["oracle"]
+    assert o["affordance"] == "ground truth" and rep["models"]["adm"]["affordance"] == "adm"
+    assert "success@0.3" not in o["summary"] and np.isfinite(o["summary"]["goal_distance"]["mean"])
+    assert o["summary"]["goal_distance"] != rep["models"]["adm"]["summary"]["goal_distance"]
+    md = format_markdown(rep)
+    assert "| oracle | DDIM-2 (ground-truth maps) |" in md
+    assert md.count("| adm | perceiver |") == 1 and "| oracle | perceiver |" not in md
 
 
 def test_cases_carry_the_target_class_mask(tiny_runs):

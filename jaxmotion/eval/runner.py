@@ -19,6 +19,10 @@ trained on (no rotation), then scored:
   top 1/2/3, MultiModal distance, Diversity, MultiModality (K ≥ 2), and a "real" row from the
   ground truth.
 
+A row with ``affordance=gt`` feeds the AMDM the ground-truth affordance maps (from the
+dataset's motion) instead of the ADM's, with the same motion noise as the ADM row: the gap
+between the two rows is the part of the error that comes from the ADM.
+
 Per replication a metric is the mean over cases (and samples); the report gives the mean over
 replications ± the 95 % interval ``1.96 σ / √R`` (the HumanML3D convention).
 """
@@ -53,21 +57,25 @@ class ModelSpec:
     steps: int = 50
     adm_guidance: float = 1.0
     amdm_guidance: float = 1.0
+    affordance: str = "adm"  # "gt": the AMDM gets ground-truth maps (an oracle row)
 
     @property
     def sampler_label(self) -> str:
         label = "DDPM (all steps)" if self.method == "ddpm" else f"DDIM-{self.steps}"
         guided = [f"{stage} w={g:g}" for stage, g in
                   (("ADM", self.adm_guidance), ("AMDM", self.amdm_guidance)) if g != 1.0]
+        if self.affordance == "gt":
+            guided.append("ground-truth maps")
         return label + (f" ({', '.join(guided)})" if guided else "")
 
 
 def parse_model(text: str) -> ModelSpec:
-    """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G]`` → :class:`ModelSpec`
-    (the ``--model`` syntax)."""
+    """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,affordance=adm|gt]``
+    → :class:`ModelSpec` (the ``--model`` syntax). ``affordance=gt`` feeds the AMDM the
+    ground-truth affordance maps instead of the ADM's: the row then measures the AMDM alone."""
     name, sep, rest = text.partition("=")
     usage = (f"--model {text!r}: expected NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G]"
-             "[,amdm_guidance=G], e.g. two_stage=runs/adm,runs/amdm,ddim50")
+             "[,amdm_guidance=G][,affordance=adm|gt], e.g. two_stage=runs/adm,runs/amdm,ddim50")
     parts = rest.split(",")
     options = [p for p in parts[2:] if "=" in p]
     positional = [p for p in parts if "=" not in p]
@@ -85,18 +93,26 @@ def parse_model(text: str) -> ModelSpec:
             raise ValueError(f"--model {text!r}: sampler {positional[2]!r} is not ddimN (N > 0) "
                              "or ddpm")
     guidance = {"adm_guidance": 1.0, "amdm_guidance": 1.0}
+    affordance = "adm"
     for opt in options:
         key, _, value = opt.partition("=")
+        if key == "affordance":
+            if value not in ("adm", "gt"):
+                raise ValueError(f"--model {text!r}: affordance must be adm (the ADM's maps) or "
+                                 f"gt (ground-truth maps), got {value!r}")
+            affordance = value
+            continue
         if key not in guidance:
             raise ValueError(f"--model {text!r}: unknown option {key!r}; valid: "
-                             + ", ".join(guidance))
+                             + ", ".join([*guidance, "affordance"]))
         try:
             guidance[key] = float(value)
         except ValueError:
             raise ValueError(f"--model {text!r}: {key} must be a number, got {value!r}") from None
         if not guidance[key] > 0:
             raise ValueError(f"--model {text!r}: {key} must be > 0 (1 = no guidance)")
-    return ModelSpec(name, positional[0], positional[1], method, steps, **guidance)
+    return ModelSpec(name, positional[0], positional[1], method, steps, **guidance,
+                     affordance=affordance)
 
 
 # --------------------------------------------------------------------------- per case
@@ -238,6 +254,16 @@ def evaluate(
         adm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.adm_guidance)
         amdm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.amdm_guidance)
         two_stage = pipe.amdm.cfg.scene_input == "affordance"
+        oracle = spec.affordance == "gt"
+        if oracle:
+            if not two_stage:
+                raise ValueError(f"--model {spec.name!r}: affordance=gt needs an AMDM that reads "
+                                 "affordance maps; this one reads the point colours (one-stage)")
+            from jaxmotion.data.loader import _batched_affordance
+
+            gt_maps = np.asarray(jax.device_get(_batched_affordance(pipe.sigma)(
+                np.stack([c["points"] for c in cases]), np.stack([c["gt"] for c in cases]),
+                np.stack([c["mask"] for c in cases]))))
         reps, fit_errors = [], []
         for r in range(replications):
             key = jax.random.fold_in(jax.random.key(seed), r)
@@ -247,15 +273,23 @@ def evaluate(
             for start in range(0, len(rows), batch_size):
                 chunk = rows[start:start + batch_size]
                 idx = [ci for ci, _ in chunk] + [chunk[-1][0]] * (batch_size - len(chunk))
-                res = jax.device_get(pipe.sample(
-                    jax.random.fold_in(key, start), np.stack([cases[i]["points"] for i in idx]),
-                    np.stack([cases[i]["colors"] for i in idx]), emb[idx],
-                    np.stack([cases[i]["mask"] for i in idx]), adm=adm_sampler, amdm=amdm_sampler))
+                points = np.stack([cases[i]["points"] for i in idx])
+                mask = np.stack([cases[i]["mask"] for i in idx])
+                k_batch = jax.random.fold_in(key, start)
+                if oracle:  # the AMDM alone, on the maps of the ground-truth motion
+                    res = {"joints": jax.device_get(pipe.sample_motion(
+                        jax.random.split(k_batch)[1], points, gt_maps[idx], emb[idx], mask,
+                        amdm_sampler))}
+                else:
+                    res = jax.device_get(pipe.sample(
+                        k_batch, points, np.stack([cases[i]["colors"] for i in idx]), emb[idx],
+                        mask, adm=adm_sampler, amdm=amdm_sampler))
                 for j, (ci, k) in enumerate(chunk):
                     joints[ci, k] = res["joints"][j]
-                    if two_stage:
+                    if "affordance" in res:
                         affs[ci][k] = res["affordance"][j]
-            per_case = _score_cases(cases, joints, affs if two_stage else None, phys, body, fps,
+            grounded = two_stage and not oracle
+            per_case = _score_cases(cases, joints, affs if grounded else None, phys, body, fps,
                                     fit_errors, bar, vertex_stride)
             keys = sorted({k for row in per_case for k in row})
             rep = {k: float(np.nanmean([row.get(k, np.nan) for row in per_case])) for k in keys}
@@ -276,6 +310,7 @@ def evaluate(
         report["models"][spec.name] = {
             "adm": str(spec.adm), "amdm": str(spec.amdm), "sampler": spec.sampler_label,
             "two_stage": two_stage, "scene_input": pipe.amdm.cfg.scene_input,
+            "affordance": "ground truth" if oracle else ("adm" if two_stage else None),
             "adm_arch": _adm_arch(spec.adm),
             "replications": reps,
             "summary": {k: _ci([rep.get(k, np.nan) for rep in reps]) for k in keys},
@@ -341,7 +376,8 @@ def format_markdown(report: dict) -> str:
             cells += [_cell(s.get(k)) for k in ("fid", "r_precision_top3", "multimodal_dist",
                                                "diversity", "multimodality")]
         lines.append("| " + " | ".join(cells) + " |")
-    grounded = {n: m for n, m in models.items() if m["two_stage"]}
+    grounded = {n: m for n, m in models.items()
+                if m["two_stage"] and m.get("affordance", "adm") == "adm"}
     if grounded:
         head = ["method", "ADM", "min dist. ↓", "pelvis dist. ↓", "all dist. ↓", "succ. 0.1 ↑",
                 "succ. 0.3 ↑", "succ. 0.5 ↑", "succ. 0.3, instance ↑"]

@@ -167,12 +167,16 @@ class AffordancePipeline:
         return self._jitted[1](spec, keys, points, scene_feat, text_emb, mask)
 
     def sample(self, key, points, colors, text_emb, mask, *, adm=SamplerSpec(steps=50),
-               amdm=SamplerSpec(steps=50)) -> dict:
-        """Both stages: affordance from scene + text, then motion from affordance + text."""
+               amdm=SamplerSpec(steps=50), affordance=None) -> dict:
+        """Both stages: affordance from scene + text, then motion from affordance + text.
+
+        ``affordance``: maps ``[B,N,6]`` in [0, 1] to use instead of sampling the ADM (e.g. the
+        ground truth's); the motion then gets the same noise as with the ADM's maps."""
         ka, km = jax.random.split(key)
         if self.amdm.cfg.scene_input == "rgb":
             return {"joints": self.sample_motion(km, points, colors, text_emb, mask, amdm)}
-        aff = self.sample_affordance(ka, points, colors, text_emb, adm)
+        aff = (self.sample_affordance(ka, points, colors, text_emb, adm) if affordance is None
+               else affordance)
         return {"affordance": aff, "joints": self.sample_motion(km, points, aff, text_emb, mask, amdm)}
 
 
@@ -210,9 +214,9 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
             sem = sc["semantic"] if "semantic" in sc.files else None
         c = crop_sample(np.random.default_rng([seed, i]), xyz, rgb, inst, s["joints"], s["mask"],
                         s["target_id"], spec)
-        class_mask = c.target_mask
-        if sem is not None and (inst == s["target_id"]).any():
-            labels, counts = np.unique(sem[inst == s["target_id"]], return_counts=True)
+        class_mask, on_target = c.target_mask, inst == s["target_id"]
+        if sem is not None and on_target.any():
+            labels, counts = np.unique(sem[on_target], return_counts=True)
             target_class = labels[np.argmax(counts)]
             class_mask = sem[c.indices] == target_class
         t = min(len(s["mask"]), max_frames)

@@ -63,3 +63,27 @@ def test_sampling_shapes_and_world_frame(runs, tmp_path):
                          num_cases=2, samples_per_case=2, adm=SamplerSpec("ddim", 4),
                          amdm=SamplerSpec("ddim", 4), batch_size=4, progress=False)
     np.testing.assert_array_equal(np.load(again)["joints"], d["joints"])  # same seed, same result
+
+
+def test_given_maps_replace_the_adm_with_the_same_motion_noise(runs):
+    """``sample(..., affordance=A)`` skips the ADM and conditions the AMDM on ``A`` with the
+    noise it would have had: fed the ADM's own maps back, it gives the very same motion."""
+    import jax
+
+    from jaxmotion.sample import AffordancePipeline, SamplerSpec, load_cases
+
+    root, out = runs
+    pipe = AffordancePipeline.from_workdirs(root / "adm", root / "amdm")
+    cases, _ = load_cases(out["data"], "test", pipe.amdm_config, num_cases=2)
+    pts, col = (np.stack([c[k] for c in cases]) for k in ("points", "colors"))
+    mask = np.stack([c["mask"] for c in cases])
+    emb = np.random.default_rng(0).normal(size=(2, 384)).astype(np.float32)
+    spec, key = SamplerSpec("ddim", 3), jax.random.key(7)
+    full = pipe.sample(key, pts, col, emb, mask, adm=spec, amdm=spec)
+    given = pipe.sample(key, pts, col, emb, mask, adm=spec, amdm=spec,
+                        affordance=full["affordance"])
+    np.testing.assert_allclose(given["joints"], full["joints"], atol=1e-5)
+    other = pipe.sample(key, pts, col, emb, mask, adm=spec, amdm=spec,
+                        affordance=np.zeros_like(full["affordance"]))
+    np.testing.assert_array_equal(other["affordance"], 0.0)
+    assert not np.allclose(other["joints"], full["joints"], atol=1e-3)

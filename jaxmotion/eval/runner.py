@@ -273,22 +273,16 @@ def evaluate(
             for start in range(0, len(rows), batch_size):
                 chunk = rows[start:start + batch_size]
                 idx = [ci for ci, _ in chunk] + [chunk[-1][0]] * (batch_size - len(chunk))
-                points = np.stack([cases[i]["points"] for i in idx])
-                mask = np.stack([cases[i]["mask"] for i in idx])
-                k_batch = jax.random.fold_in(key, start)
-                if oracle:  # the AMDM alone, on the maps of the ground-truth motion
-                    res = {"joints": jax.device_get(pipe.sample_motion(
-                        jax.random.split(k_batch)[1], points, gt_maps[idx], emb[idx], mask,
-                        amdm_sampler))}
-                else:
-                    res = jax.device_get(pipe.sample(
-                        k_batch, points, np.stack([cases[i]["colors"] for i in idx]), emb[idx],
-                        mask, adm=adm_sampler, amdm=amdm_sampler))
+                res = jax.device_get(pipe.sample(
+                    jax.random.fold_in(key, start), np.stack([cases[i]["points"] for i in idx]),
+                    np.stack([cases[i]["colors"] for i in idx]), emb[idx],
+                    np.stack([cases[i]["mask"] for i in idx]), adm=adm_sampler, amdm=amdm_sampler,
+                    affordance=gt_maps[idx] if oracle else None))
                 for j, (ci, k) in enumerate(chunk):
                     joints[ci, k] = res["joints"][j]
-                    if "affordance" in res:
+                    if two_stage:
                         affs[ci][k] = res["affordance"][j]
-            grounded = two_stage and not oracle
+            grounded = two_stage and not oracle  # ground-truth maps are not scored
             per_case = _score_cases(cases, joints, affs if grounded else None, phys, body, fps,
                                     fit_errors, bar, vertex_stride)
             keys = sorted({k for row in per_case for k in row})

@@ -119,6 +119,17 @@ def _guidance_arg(text: str):
     return values[0] if len(values) == 1 else values
 
 
+def _unit_arg(text: str) -> float:
+    """A number in [0, 1] (argparse type)."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a number in [0, 1] (0 = off)")
+    return v
+
+
 def _cmd_generate(args: argparse.Namespace) -> int:
     import time
 
@@ -132,7 +143,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     print(f"generating {args.samples} motion(s) for {args.text!r} in {args.scene} ...",
           file=sys.stderr, flush=True)
     res = generate(args.scene, args.text, object_id=args.object, samples=args.samples,
-                   seed=args.seed, steps=args.steps, guidance=args.guidance, checkpoints=ckpt,
+                   seed=args.seed, steps=args.steps, guidance=args.guidance,
+                   consistency=args.consistency, checkpoints=ckpt,
                    num_points=args.points, progress=True)
     t1 = time.perf_counter()
     files = res.save(args.out, video=None if args.video == "none" else args.video)
@@ -259,6 +271,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--guidance", type=_guidance_arg, default=None, metavar="G|ADM,AMDM",
                    help="classifier-free guidance scale of both stages, or one per stage "
                    "(default: the shipped checkpoints' tuned scales; 1 = no guidance)")
+    p.add_argument("--consistency", type=_unit_arg, default=None, metavar="S",
+                   help="strength in [0, 1] of affordance-consistency guidance: the motion is "
+                   "steered to match the predicted affordance map (default: the tuned value; "
+                   "0 = off)")
     p.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
     p.add_argument("--checkpoints", nargs="+", default=None, metavar="PATH",
                    help="a folder with adm.safetensors and amdm.safetensors, or the ADM and "
@@ -280,7 +296,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", action="append", required=True, metavar="NAME=ADM,AMDM[,SAMPLER][,OPT=G]",
                    help="a row: name, ADM and AMDM workdirs (or .safetensors), sampler ddimN "
                    "(default ddim50) or ddpm, and optionally adm_guidance=G / amdm_guidance=G "
-                   "(classifier-free guidance scale per stage, default 1) and affordance=gt (the "
+                   "(classifier-free guidance scale per stage, default 1), consistency=S "
+                   "(affordance-consistency guidance strength in [0, 1], default 0) and "
+                   "affordance=gt (the "
                    "AMDM on ground-truth maps: the AMDM's own error); repeat for more rows")
     p.add_argument("--split", default="test", choices=("train", "val", "test"))
     p.add_argument("--cases", type=int, default=64, help="cases from the split (default 64)")

@@ -45,6 +45,7 @@ import numpy as np
 from jaxmotion._version import __version__
 
 __all__ = [
+    "DEFAULT_CONSISTENCY",
     "DEFAULT_TEXT",
     "GenerateError",
     "Generation",
@@ -59,6 +60,10 @@ DEFAULT_TEXT = "sit on the chair next to the table"
 #: maps to the ground truth's share of high-affordance points (success@0.3 75 → 88 %) with
 #: goal distance unchanged within the noise; guiding the AMDM made motions end farther away.
 DEFAULT_GUIDANCE: tuple[float, float] = (5.0, 1.0)
+#: Strength of affordance-consistency guidance on the AMDM (0 = off; see
+#: :mod:`jaxmotion.diffusion.affordance_guidance`), chosen on the validation split
+#: (docs/results.md, "Consistency guidance").
+DEFAULT_CONSISTENCY: float = 0.5
 DEMO_SEED = 22  # a dining room (L-shaped, 4.3 x 6.0 m) with one table and one chair by it
 DEMO_POINTS = 60_000
 OUTPUT_FILES = ("motion.npz", "motion.bvh", "motion.glb", "motion.gif", "viewer.html")
@@ -282,7 +287,8 @@ class Generation:
       rotation ``[3,3]``, shift ``[3]``: the crop frame, ``x_scene = x_crop @ rotation + shift``.
       object_id: as passed; target_id: the object the region was centred on (``object_id``, or
         the one chosen from the text; None when the region came from tiling the room).
-      seed, steps: as passed; guidance: the ``(ADM, AMDM)`` guidance scales used.
+      seed, steps: as passed; guidance: the ``(ADM, AMDM)`` guidance scales used;
+      consistency: the affordance-consistency strength used (0 = off).
       timings: seconds per stage.
     """
 
@@ -304,6 +310,7 @@ class Generation:
     steps: int
     timings: dict
     guidance: tuple[float, float] = (1.0, 1.0)
+    consistency: float = 0.0
 
     @property
     def num_samples(self) -> int:
@@ -346,6 +353,7 @@ class Generation:
                          target_id=np.int64(-1 if self.target_id is None else self.target_id),
                          seed=np.int64(self.seed), steps=np.int64(self.steps),
                          guidance=np.asarray(self.guidance, np.float32),
+                         consistency=np.float32(self.consistency),
                          scene_name=np.array(self.scene.name))
             p = self.smplx
             i = int(bvh_sample)
@@ -433,6 +441,19 @@ def _guidance_pair(guidance) -> tuple[float, float]:
     return pair
 
 
+def _consistency(value) -> float:
+    """``None`` → :data:`DEFAULT_CONSISTENCY`; else a float in [0, 1]."""
+    if value is None:
+        return DEFAULT_CONSISTENCY
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = float("nan")
+    if isinstance(value, bool) or not 0.0 <= v <= 1.0:
+        raise GenerateError(f"consistency must be a number in [0, 1] (0 = off), got {value!r}")
+    return v
+
+
 # --------------------------------------------------------------------------- main
 def generate(
     scene,
@@ -443,6 +464,7 @@ def generate(
     seed: int = 0,
     steps: int = 20,
     guidance: float | tuple[float, float] | None = None,
+    consistency: float | None = None,
     checkpoints=None,
     num_points: int | None = None,
     fit: bool = True,
@@ -460,6 +482,9 @@ def generate(
       steps: DDIM steps of each stage (ADM and AMDM).
       guidance: classifier-free guidance scale, one for both stages or an ``(ADM, AMDM)``
         pair; None: :data:`DEFAULT_GUIDANCE` (1 = no guidance).
+      consistency: strength in [0, 1] of affordance-consistency guidance, which moves the
+        body so that the motion matches the ADM's map (0 = off); None:
+        :data:`DEFAULT_CONSISTENCY`.
       checkpoints: None (shipped), a folder with ``adm.safetensors`` / ``amdm.safetensors``, or
         an ``(adm, amdm)`` pair of workdirs / files.
       num_points: surface samples taken from a mesh (default 100k); point clouds keep theirs.
@@ -514,7 +539,9 @@ def generate(
     k_tiles, k_main = jax.random.split(key)
     adm_w, amdm_w = _guidance_pair(guidance)
     adm_sampler = SamplerSpec(method="ddim", steps=int(steps), guidance=adm_w)
-    amdm_sampler = SamplerSpec(method="ddim", steps=int(steps), guidance=amdm_w)
+    consistency = _consistency(consistency)
+    amdm_sampler = SamplerSpec(method="ddim", steps=int(steps), guidance=amdm_w,
+                               consistency=consistency)
     aot_dir = xla_cache / "programs" if aot else None
     versions = (jax.__version__, __version__)
     lap("load")
@@ -572,7 +599,7 @@ def generate(
         fit_error=err, crop_xyz=room.xyz[pick].astype(np.float32),
         crop_rgb=room.rgb[pick].astype(np.float32), affordance=aff, rotation=rot, shift=shift,
         object_id=None if object_id is None else int(object_id), target_id=chosen,
-        seed=int(seed), steps=int(steps), guidance=(adm_w, amdm_w),
+        seed=int(seed), steps=int(steps), guidance=(adm_w, amdm_w), consistency=consistency,
         timings=times,
     )
 

@@ -30,17 +30,26 @@ __all__ = ["AffordancePipeline", "SamplerSpec", "load_cases", "sample_split"]
 
 @dataclass(frozen=True)
 class SamplerSpec:
-    """How to sample one stage: ``method`` ddpm|ddim, ``steps`` (DDIM only), ``eta``, guidance."""
+    """How to sample one stage: ``method`` ddpm|ddim, ``steps`` (DDIM only), ``eta``,
+    classifier-free ``guidance``, and ``consistency``: the strength in [0, 1] of
+    affordance-consistency guidance (AMDM stage only; 0 = off; see
+    :mod:`jaxmotion.diffusion.affordance_guidance`)."""
 
     method: str = "ddim"
     steps: int = 50
     eta: float = 0.0
     guidance: float = 1.0
+    consistency: float = 0.0
 
-    def run(self, key, denoise, schedule, shape, cond, null_cond):
+    def __post_init__(self):
+        if not 0.0 <= float(self.consistency) <= 1.0:
+            raise ValueError(f"consistency must be in [0, 1] (0 = off), got {self.consistency}")
+
+    def run(self, key, denoise, schedule, shape, cond, null_cond, refine_fn=None):
         from jaxmotion.diffusion import ddim_sample, ddpm_sample
 
-        kw = dict(cond=cond, guidance_scale=self.guidance, null_cond=null_cond)
+        kw = dict(cond=cond, guidance_scale=self.guidance, null_cond=null_cond,
+                  refine_fn=refine_fn)
         if self.method == "ddpm":
             return ddpm_sample(key, denoise, schedule, shape, **kw)
         if self.method == "ddim":
@@ -138,7 +147,14 @@ class AffordancePipeline:
                     "drop_affordance": jnp.ones_like(c["drop_affordance"])}
 
         shape = (1, mask.shape[0], cfg.motion_dim)
-        x0 = spec.run(key, denoise, self.amdm_schedule, shape, {**base, **flags}, null)
+        refine = None
+        if spec.consistency > 0 and cfg.scene_input == "affordance" and cfg.motion_dim == 66:
+            from jaxmotion.diffusion.affordance_guidance import ConsistencyGuidance, make_x0_refiner
+
+            refine = make_x0_refiner(points, scene_feat, mask, self.m_mean, self.m_std,
+                                     ConsistencyGuidance(strength=float(spec.consistency)),
+                                     self.sigma)
+        x0 = spec.run(key, denoise, self.amdm_schedule, shape, {**base, **flags}, null, refine)
         motion = x0[0] * self.m_std + self.m_mean
         return motion.reshape(mask.shape[0], 22, 3)
 

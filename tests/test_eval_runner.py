@@ -32,6 +32,17 @@ def test_parse_model_guidance_per_stage():
         parse_model("o=x,y,affordance=oracle")
 
 
+def test_parse_model_consistency():
+    m = parse_model("c=x,y,ddim20,adm_guidance=5,consistency=0.5")
+    assert m.consistency == 0.5 and m.sampler_label == "DDIM-20 (ADM w=5, consistency 0.5)"
+    assert parse_model("c=x,y").consistency == 0.0
+    m = parse_model("c=x,y,ddim4,consistency=1,affordance=gt")
+    assert m.sampler_label == "DDIM-4 (consistency 1, ground-truth maps)"
+    for bad in ("c=x,y,consistency=2", "c=x,y,consistency=-0.5", "c=x,y,consistency=some"):
+        with pytest.raises(ValueError, match="consistency must be a number in"):
+            parse_model(bad)
+
+
 def test_ground_truth_affordance_row(tiny_runs):
     """affordance=gt: the AMDM on the dataset's own maps; its own row, no grounding columns
     (there are no ADM maps to score)."""

@@ -113,6 +113,9 @@ def test_object_id_centres_the_crop_on_the_object(ckpt):
     (dict(guidance=(1.0, 2.0, 3.0)), "guidance must be"),
     (dict(guidance=("a", 1.0)), "guidance must be"),
     (dict(guidance=float("nan")), "guidance must be"),
+    (dict(consistency=1.5), "consistency must be"),
+    (dict(consistency="strong"), "consistency must be"),
+    (dict(consistency=True), "consistency must be"),
 ])
 def test_bad_input_is_a_clear_error(ckpt, kwargs, match):
     args = {"scene": "demo", "text": "sit on the chair", **FAST, **kwargs}
@@ -137,6 +140,19 @@ def test_guidance_per_stage(result, ckpt):
     assert motion_only.guidance == (1.0, 3.0)
     np.testing.assert_allclose(motion_only.affordance, base.affordance, atol=1e-6)
     assert not np.allclose(motion_only.joints, base.joints, atol=1e-4)
+
+
+def test_consistency_guidance(result, ckpt):
+    """The default strength is recorded; 0 turns it off: the same maps, another motion."""
+    from jaxmotion.generation import DEFAULT_CONSISTENCY
+
+    assert result.consistency == DEFAULT_CONSISTENCY > 0
+    kw = dict(samples=2, seed=3, checkpoints=ckpt, **FAST)
+    on = jaxmotion.generate("demo", "sit on the chair next to the table", **kw)
+    off = jaxmotion.generate("demo", "sit on the chair next to the table", consistency=0, **kw)
+    assert (on.consistency, off.consistency) == (DEFAULT_CONSISTENCY, 0.0)
+    np.testing.assert_allclose(on.affordance, off.affordance, atol=1e-6)
+    assert not np.allclose(on.joints, off.joints, atol=1e-4)
 
 
 def test_checkpoints_that_do_not_match(ckpt, tmp_path):
@@ -209,6 +225,14 @@ def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
                  "--guidance", "2,1", "--out", str(tmp_path / "g"), "--checkpoints", *ckpt]) == 0
     with np.load(tmp_path / "g" / "motion.npz") as f:
         np.testing.assert_allclose(f["guidance"], [2.0, 1.0])
+    assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
+                 "--consistency", "0", "--out", str(tmp_path / "c"), "--checkpoints", *ckpt]) == 0
+    with np.load(tmp_path / "c" / "motion.npz") as f:
+        assert float(f["consistency"]) == 0.0
+    for bad in ("1.5", "x"):
+        with pytest.raises(SystemExit):
+            main(["generate", "--consistency", bad, "--out", str(tmp_path / "bad")])
+        assert "--consistency" in capsys.readouterr().err
     for bad in ("0", "1,2,3", "x"):
         with pytest.raises(SystemExit):
             main(["generate", "--guidance", bad, "--out", str(tmp_path / "bad")])

@@ -4,7 +4,7 @@ All samplers are pure functions of ``denoise_fn(x_t, t, cond) -> x0_hat``
 (``x_t`` ``[B, ...]``, ``t`` ``[B]`` int32, ``cond`` a pytree of ``[B, ...]``
 leaves or ``None``). Loops are ``jax.lax.scan``; shapes and step counts are
 static, so the caller jits a sampler once (``denoise_fn``, ``shape``,
-``num_steps``, ``spacing``, ``clip_fn`` and ``known_mode`` static; ``key``,
+``num_steps``, ``spacing``, ``clip_fn``, ``refine_fn`` and ``known_mode`` static; ``key``,
 ``schedule``, ``cond``, ``eta``, ``guidance_scale`` may be traced) and can
 ``vmap`` it over keys, conditions or batches.
 
@@ -160,6 +160,7 @@ def ddim_posterior(schedule: Schedule, x_t, t, t_prev, x0_hat, eta=0.0):
 def _reverse_loop(
     key, denoise_fn, schedule, shape, cond, ts, posterior, *,
     guidance_scale, null_cond, clip_fn, known_mask, known_values, known_mode, x_init,
+    refine_fn=None,
 ):
     """Shared scan over descending timesteps ``ts`` (NumPy ascending ``[S]``)."""
     if known_mode not in _KNOWN_MODES:
@@ -199,6 +200,8 @@ def _reverse_loop(
         )
         if clip_fn is not None:
             x0_hat = clip_fn(x0_hat)
+        if refine_fn is not None:
+            x0_hat = refine_fn(x0_hat, tb)
         if known and known_mode == "x0":
             x0_hat = jnp.where(m, v, x0_hat)
         mean, std = posterior(x, tb, tpb, x0_hat)
@@ -218,6 +221,7 @@ def ddpm_sample(
     key, denoise_fn: Callable, schedule: Schedule, shape=None, cond=None, *,
     guidance_scale=1.0, null_cond=None, clip_fn: Callable | None = None,
     known_mask=None, known_values=None, known_mode: str = "x0", x_init=None,
+    refine_fn: Callable | None = None,
 ):
     """Ancestral DDPM sampling through all ``T`` steps.
 
@@ -234,6 +238,9 @@ def ddpm_sample(
       known_mask, known_values: optional known entries (prefix-rule mask, values ``[B, ...]``).
       known_mode: ``"x0"`` or ``"noised"`` (module docstring).
       x_init: optional starting ``x_{T−1}`` ``[B, ...]`` instead of fresh noise.
+      refine_fn: optional ``(x0_hat [B, ...], t [B]) -> x0_hat`` applied after ``clip_fn``
+        at every step (guidance that edits the clean estimate, e.g.
+        :func:`jaxmotion.diffusion.affordance_guidance.make_x0_refiner`).
     Returns:
       samples ``[B, ...]`` float32.
     """
@@ -242,7 +249,7 @@ def ddpm_sample(
     return _reverse_loop(
         key, denoise_fn, schedule, shape, cond, ts, post, guidance_scale=guidance_scale,
         null_cond=null_cond, clip_fn=clip_fn, known_mask=known_mask,
-        known_values=known_values, known_mode=known_mode, x_init=x_init,
+        known_values=known_values, known_mode=known_mode, x_init=x_init, refine_fn=refine_fn,
     )
 
 
@@ -251,6 +258,7 @@ def ddim_sample(
     num_steps: int = 50, eta=0.0, spacing: str = "linspace",
     guidance_scale=1.0, null_cond=None, clip_fn: Callable | None = None,
     known_mask=None, known_values=None, known_mode: str = "x0", x_init=None,
+    refine_fn: Callable | None = None,
 ):
     """DDIM sampling with ``num_steps`` ``S ≤ T`` steps and stochasticity ``eta``.
 
@@ -267,7 +275,7 @@ def ddim_sample(
     return _reverse_loop(
         key, denoise_fn, schedule, shape, cond, ts, post, guidance_scale=guidance_scale,
         null_cond=null_cond, clip_fn=clip_fn, known_mask=known_mask,
-        known_values=known_values, known_mode=known_mode, x_init=x_init,
+        known_values=known_values, known_mode=known_mode, x_init=x_init, refine_fn=refine_fn,
     )
 
 

@@ -58,24 +58,30 @@ class ModelSpec:
     adm_guidance: float = 1.0
     amdm_guidance: float = 1.0
     affordance: str = "adm"  # "gt": the AMDM gets ground-truth maps (an oracle row)
+    consistency: float = 0.0  # affordance-consistency guidance strength of the AMDM (0 = off)
 
     @property
     def sampler_label(self) -> str:
         label = "DDPM (all steps)" if self.method == "ddpm" else f"DDIM-{self.steps}"
         guided = [f"{stage} w={g:g}" for stage, g in
                   (("ADM", self.adm_guidance), ("AMDM", self.amdm_guidance)) if g != 1.0]
+        if self.consistency:
+            guided.append(f"consistency {self.consistency:g}")
         if self.affordance == "gt":
             guided.append("ground-truth maps")
         return label + (f" ({', '.join(guided)})" if guided else "")
 
 
 def parse_model(text: str) -> ModelSpec:
-    """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,affordance=adm|gt]``
-    → :class:`ModelSpec` (the ``--model`` syntax). ``affordance=gt`` feeds the AMDM the
-    ground-truth affordance maps instead of the ADM's: the row then measures the AMDM alone."""
+    """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,consistency=S]
+    [,affordance=adm|gt]`` → :class:`ModelSpec` (the ``--model`` syntax). ``consistency``: the
+    strength in [0, 1] of affordance-consistency guidance on the AMDM (0, the default, = off).
+    ``affordance=gt`` feeds the AMDM the ground-truth affordance maps instead of the ADM's: the
+    row then measures the AMDM alone."""
     name, sep, rest = text.partition("=")
     usage = (f"--model {text!r}: expected NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G]"
-             "[,amdm_guidance=G][,affordance=adm|gt], e.g. two_stage=runs/adm,runs/amdm,ddim50")
+             "[,amdm_guidance=G][,consistency=S][,affordance=adm|gt], e.g. "
+             "two_stage=runs/adm,runs/amdm,ddim50")
     parts = rest.split(",")
     options = [p for p in parts[2:] if "=" in p]
     positional = [p for p in parts if "=" not in p]
@@ -93,9 +99,18 @@ def parse_model(text: str) -> ModelSpec:
             raise ValueError(f"--model {text!r}: sampler {positional[2]!r} is not ddimN (N > 0) "
                              "or ddpm")
     guidance = {"adm_guidance": 1.0, "amdm_guidance": 1.0}
-    affordance = "adm"
+    affordance, consistency = "adm", 0.0
     for opt in options:
         key, _, value = opt.partition("=")
+        if key == "consistency":
+            try:
+                consistency = float(value)
+            except ValueError:
+                consistency = float("nan")
+            if not 0.0 <= consistency <= 1.0:
+                raise ValueError(f"--model {text!r}: consistency must be a number in [0, 1] "
+                                 f"(0 = off), got {value!r}")
+            continue
         if key == "affordance":
             if value not in ("adm", "gt"):
                 raise ValueError(f"--model {text!r}: affordance must be adm (the ADM's maps) or "
@@ -104,7 +119,7 @@ def parse_model(text: str) -> ModelSpec:
             continue
         if key not in guidance:
             raise ValueError(f"--model {text!r}: unknown option {key!r}; valid: "
-                             + ", ".join([*guidance, "affordance"]))
+                             + ", ".join([*guidance, "consistency", "affordance"]))
         try:
             guidance[key] = float(value)
         except ValueError:
@@ -112,7 +127,7 @@ def parse_model(text: str) -> ModelSpec:
         if not guidance[key] > 0:
             raise ValueError(f"--model {text!r}: {key} must be > 0 (1 = no guidance)")
     return ModelSpec(name, positional[0], positional[1], method, steps, **guidance,
-                     affordance=affordance)
+                     affordance=affordance, consistency=consistency)
 
 
 # --------------------------------------------------------------------------- per case
@@ -252,7 +267,8 @@ def evaluate(
         cases, _ = load_cases(data_dir, split, pipe.amdm_config, num_cases=num_cases, seed=seed)
         emb = encoder([c["text"] for c in cases])
         adm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.adm_guidance)
-        amdm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.amdm_guidance)
+        amdm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.amdm_guidance,
+                                   consistency=spec.consistency)
         two_stage = pipe.amdm.cfg.scene_input == "affordance"
         oracle = spec.affordance == "gt"
         if oracle:

@@ -148,7 +148,12 @@ class AffordancePipeline:
 
         shape = (1, mask.shape[0], cfg.motion_dim)
         refine = None
-        if spec.consistency > 0 and cfg.scene_input == "affordance" and cfg.motion_dim == 66:
+        if spec.consistency > 0:
+            if cfg.scene_input != "affordance" or cfg.motion_dim != 66:
+                raise ValueError("consistency guidance needs an AMDM that reads affordance maps "
+                                 "and predicts the 66-d joint features; this one reads "
+                                 f"{cfg.scene_input!r} and predicts {cfg.motion_dim}-d motion: "
+                                 "set consistency to 0")
             from jaxmotion.diffusion.affordance_guidance import ConsistencyGuidance, make_x0_refiner
 
             refine = make_x0_refiner(points, scene_feat, mask, self.m_mean, self.m_std,

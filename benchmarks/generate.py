@@ -9,7 +9,7 @@ Runs the command in fresh Python processes, as a user does:
 Prints wall-clock seconds of the whole process (import, load, sampling, body fit, writing
 every output) and the per-stage split reported by the command itself.
 
-    python benchmarks/generate.py [--runs 3] [--steps 20] [--video gif|mp4|none]
+    python benchmarks/generate.py [--runs 3] [--steps 20] [--video gif|mp4|none] [--consistency S]
 """
 
 from __future__ import annotations
@@ -31,6 +31,8 @@ def run_once(cache: str, out: str, args) -> tuple[float, dict]:
            "--steps", str(args.steps), "--video", args.video, "--samples", str(args.samples)]
     if args.checkpoints:
         cmd += ["--checkpoints", *args.checkpoints]
+    if args.consistency is not None:
+        cmd += ["--consistency", str(args.consistency)]
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
@@ -47,10 +49,13 @@ def main():
     ap.add_argument("--samples", type=int, default=1)
     ap.add_argument("--video", default="gif", choices=("gif", "mp4", "none"))
     ap.add_argument("--checkpoints", nargs="+", default=None)
+    ap.add_argument("--consistency", type=float, default=None,
+                    help="consistency-guidance strength (default: the command's; 0 = off)")
     args = ap.parse_args()
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}")
     print(f"jaxmotion generate --scene demo --steps {args.steps} --samples {args.samples} "
-          f"--video {args.video}")
+          f"--video {args.video}"
+          + ("" if args.consistency is None else f" --consistency {args.consistency:g}"))
     with tempfile.TemporaryDirectory() as tmp:
         cache, out = os.path.join(tmp, "cache"), os.path.join(tmp, "out")
         cold, cold_st = run_once(cache, out, args)

@@ -89,31 +89,47 @@ def test_given_maps_replace_the_adm_with_the_same_motion_noise(runs):
     assert not np.allclose(other["joints"], full["joints"], atol=1e-3)
 
 
-def test_consistency_guidance_in_the_pipeline(runs):
-    """With ground-truth maps, consistency guidance brings the motion's own affordance map
-    closer to the conditioning one; a model without maps refuses it with a clear error."""
+def test_consistency_guidance_in_the_pipeline(runs, monkeypatch):
+    """The AMDM stage hands the guidance the example's points, its maps in [0, 1] (not the
+    z-scored ones the network reads), its frame mask and the motion statistics; guidance
+    changes the motion; a model without maps refuses it with a clear error. (That guidance
+    moves motions to fit their maps is tested in test_affordance_guidance.py: these 30-step
+    networks barely respond to their input.)"""
     import dataclasses
 
     import jax
     import pytest
 
+    import jaxmotion.diffusion.affordance_guidance as ag
     from jaxmotion.data.loader import _batched_affordance
     from jaxmotion.sample import AffordancePipeline, SamplerSpec, load_cases
 
     root, out = runs
     pipe = AffordancePipeline.from_workdirs(root / "adm", root / "amdm")
-    cases, _ = load_cases(out["data"], "test", pipe.amdm_config, num_cases=3)
+    cases, _ = load_cases(out["data"], "test", pipe.amdm_config, num_cases=2)
     pts, mask, gt = (np.stack([c[k] for c in cases]) for k in ("points", "mask", "gt"))
-    emb = np.random.default_rng(0).normal(size=(3, 384)).astype(np.float32)
+    mask[1, 50:] = False
+    emb = np.random.default_rng(0).normal(size=(2, 384)).astype(np.float32)
     maps = np.asarray(_batched_affordance(pipe.sigma)(pts, gt, mask))
     key = jax.random.key(3)
+    seen, make = [], ag.make_x0_refiner
 
-    def gap(consistency):
-        j = pipe.sample_motion(key, pts, maps, emb, mask, SamplerSpec("ddim", 4, consistency=consistency))
-        own = np.asarray(_batched_affordance(pipe.sigma)(pts, np.asarray(j), mask))
-        return np.abs(own - maps).mean()
+    def spy(points, affordance, frame_mask, mean, std, cfg, sigma):
+        seen.append((points, affordance, frame_mask, mean, std, cfg, sigma))
+        return make(points, affordance, frame_mask, mean, std, cfg, sigma)
 
-    assert gap(1.0) < gap(0.0)
+    monkeypatch.setattr(ag, "make_x0_refiner", spy)
+    guided = pipe._motion_one(key, pts[1], maps[1], emb[1], mask[1],
+                              SamplerSpec("ddim", 3, consistency=0.5))
+    (p, a, m, mean, std, cfg, sigma), = seen
+    np.testing.assert_array_equal(p, pts[1])
+    np.testing.assert_array_equal(a, maps[1])
+    np.testing.assert_array_equal(m, mask[1])
+    np.testing.assert_array_equal(mean, pipe.m_mean)
+    np.testing.assert_array_equal(std, pipe.m_std)
+    assert (cfg.strength, sigma) == (0.5, pipe.sigma)
+    plain = pipe._motion_one(key, pts[1], maps[1], emb[1], mask[1], SamplerSpec("ddim", 3))
+    assert len(seen) == 1 and not np.allclose(guided, plain, atol=1e-5)
     pipe.amdm.cfg = dataclasses.replace(pipe.amdm.cfg, scene_input="rgb")
     with pytest.raises(ValueError, match="consistency guidance needs an AMDM that reads"):
         pipe.sample_motion(key, pts, maps, emb, mask, SamplerSpec("ddim", 2, consistency=0.5))

@@ -96,6 +96,7 @@ def guidance_targets(points, affordance, num_points: int, sigma: float = AFFORDA
     Returns:
       ``(points [J, K, 3], target_distance [J, K])``, metres.
     """
+    points, affordance = jnp.asarray(points), jnp.asarray(affordance)
     k = min(int(num_points), points.shape[0])
     vals, idx = jax.lax.top_k(affordance.T, k)  # [J, K]
     c = jnp.clip(vals, 1e-6, c_max)
@@ -150,7 +151,7 @@ def refine_translation(joints, points, affordance, frame_mask, cfg: ConsistencyG
       ``[T, 22, 3]``: the input plus a smooth horizontal offset per frame.
     """
     pts, target = guidance_targets(points, affordance, cfg.num_points, sigma, cfg.c_max)
-    frame_mask = frame_mask.astype(bool)
+    joints, frame_mask = jnp.asarray(joints), jnp.asarray(frame_mask).astype(bool)
     idx = jnp.asarray(channels)
     grad_fn = jax.grad(consistency_loss)
 
@@ -181,6 +182,9 @@ def make_x0_refiner(points, affordance, frame_mask, mean, std, cfg: ConsistencyG
     ``mean``, ``std`` ``[66]`` the motion normalisation. With ``cfg.final_step`` off,
     timestep 0's ``x̂0`` is returned unchanged.
     """
+
+    points, affordance, frame_mask, mean, std = (
+        jnp.asarray(v) for v in (points, affordance, frame_mask, mean, std))
 
     def refine(x0_hat, t):
         b, n_t, _ = x0_hat.shape

@@ -99,7 +99,7 @@ def _cmd_sample(args: argparse.Namespace) -> int:
     enable_compilation_cache()
     adm = SamplerSpec(args.adm_sampler or args.sampler, args.adm_steps or args.steps, args.eta,
                       args.guidance)
-    amdm = SamplerSpec(args.sampler, args.steps, args.eta, args.guidance)
+    amdm = SamplerSpec(args.sampler, args.steps, args.eta, args.guidance, args.consistency)
     out = sample_split(args.data, args.split, args.adm, args.amdm, args.out,
                        num_cases=args.cases, samples_per_case=args.per_case, seed=args.seed,
                        adm=adm, amdm=amdm, batch_size=args.batch_size)
@@ -247,6 +247,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--adm-steps", type=int, default=None)
     p.add_argument("--eta", type=float, default=0.0)
     p.add_argument("--guidance", type=float, default=1.0, help="classifier-free guidance scale")
+    p.add_argument("--consistency", type=_unit_arg, default=0.0, metavar="S",
+                   help="affordance-consistency guidance strength of the AMDM in [0, 1] "
+                   "(default 0 = off)")
     p.add_argument("--batch-size", type=int, default=8)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="samples.npz")

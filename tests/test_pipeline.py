@@ -98,7 +98,6 @@ def test_consistency_guidance_in_the_pipeline(runs, monkeypatch):
     import dataclasses
 
     import jax
-    import pytest
 
     import jaxmotion.diffusion.affordance_guidance as ag
     from jaxmotion.data.loader import _batched_affordance
@@ -133,3 +132,20 @@ def test_consistency_guidance_in_the_pipeline(runs, monkeypatch):
     pipe.amdm.cfg = dataclasses.replace(pipe.amdm.cfg, scene_input="rgb")
     with pytest.raises(ValueError, match="consistency guidance needs an AMDM that reads"):
         pipe.sample_motion(key, pts, maps, emb, mask, SamplerSpec("ddim", 2, consistency=0.5))
+
+
+def test_sample_command_takes_consistency(runs, tmp_path, capsys):
+    from jaxmotion.cli import main
+
+    root, out = runs
+    common = ["sample", "--adm", str(root / "adm"), "--amdm", str(root / "amdm"), "--data",
+              str(out["data"]), "--cases", "1", "--steps", "2", "--batch-size", "1"]
+    assert main([*common, "--out", str(tmp_path / "off.npz")]) == 0
+    assert main([*common, "--consistency", "1", "--out", str(tmp_path / "on.npz")]) == 0
+    off, on = np.load(tmp_path / "off.npz"), np.load(tmp_path / "on.npz")
+    np.testing.assert_array_equal(off["affordance"], on["affordance"])
+    assert not np.allclose(off["joints"], on["joints"], atol=1e-5)
+    with pytest.raises(SystemExit):
+        main([*common, "--consistency", "2", "--out", str(tmp_path / "bad.npz")])
+    assert "--consistency" in capsys.readouterr().err
+    assert not (tmp_path / "bad.npz").exists()

@@ -30,8 +30,9 @@ def _walk(t=40, end=(1.5, 0.5)):
 
 def _room(n=1500, seed=1):
     rng = np.random.default_rng(seed)
-    return np.concatenate([rng.uniform([-1, -1, 0], [3, 2, 0], (n // 2, 3)),  # floor
-                           rng.uniform([-1, -1, 0], [3, 2, 1.2], (n - n // 2, 3))]).astype(np.float32)
+    floor = rng.uniform([-1, -1, 0], [3, 2, 0], (n // 2, 3))
+    room = rng.uniform([-1, -1, 0], [3, 2, 1.2], (n - n // 2, 3))
+    return np.concatenate([floor, room]).astype(np.float32)
 
 
 def test_targets_are_the_top_points_with_inverted_distances():

@@ -78,7 +78,8 @@ class ConsistencyGuidance:
 
     def __post_init__(self):
         if not 0.0 <= float(self.strength) <= 1.0:
-            raise ValueError(f"consistency strength must be in [0, 1] (0 = off), got {self.strength}")
+            raise ValueError(
+                f"consistency strength must be in [0, 1] (0 = off), got {self.strength}")
         if int(self.iterations) < 1 or int(self.num_points) < 1:
             raise ValueError("consistency iterations and num_points must be at least 1")
         if not (self.tau > 0 and self.smooth_frames > 0 and self.max_residual > 0):

@@ -1,0 +1,51 @@
+"""The relation probe: canonical rewrites of closest / farthest instructions, and runs."""
+
+import math
+
+import pytest
+
+import jaxmotion.eval.relation_probe as rp
+from jaxmotion.eval.relation_probe import canonical_pair, main, relation_probe
+
+
+@pytest.mark.parametrize("text, want", [
+    ("Have a seat on the chair furthest away from the fridge.",
+     ("sit on the chair farthest from the fridge", "sit on the chair closest to the fridge")),
+    ("please get up off the stool nearest the window",
+     ("stand up from the stool closest to the window",
+      "stand up from the stool farthest from the window")),
+    ("Walk over to the couch right by the tv", ("walk to the sofa closest to the tv",
+                                                "walk to the sofa farthest from the tv")),
+])
+def test_canonical_pair(text, want):
+    assert canonical_pair(text) == want
+
+
+@pytest.mark.parametrize("text", [
+    "sit on the chair", "walk to the lamp between the sofa and the tv",
+    "lie on the bed with the pillow on it", "dance wildly",
+])
+def test_other_instructions_are_not_probed(text):
+    assert canonical_pair(text) is None
+
+
+def test_probe_runs_on_tiny_checkpoints(tiny_runs, capsys):
+    root, out = tiny_runs
+    r = relation_probe(out["data"], root / "adm", root / "amdm", splits=("train", "test"),
+                       num_cases=24, steps=2, batch_size=4)
+    assert r["cases"] >= 1 and r["steps"] == 2  # the tiny dataset has one such case
+    for k in ("hit_original", "hit_true", "hit_opposite", "hit_both"):
+        assert 0.0 <= r[k] <= 1.0
+    assert r["hit_both"] <= min(r["hit_true"], r["hit_opposite"])
+    assert main(["--data", str(out["data"]), "--adm", str(root / "adm"), "--amdm",
+                 str(root / "amdm"), "--splits", "test", "--cases", "4", "--steps", "1"]) == 0
+    assert "canonical, opposite relation" in capsys.readouterr().out
+
+
+def test_probe_without_qualifying_cases(tiny_runs, monkeypatch):
+    root, out = tiny_runs
+    monkeypatch.setattr(rp, "canonical_pair", lambda text: None)
+    r = relation_probe(out["data"], root / "adm", root / "amdm", splits=("test",),
+                       num_cases=4, steps=1)
+    assert r["cases"] == 0
+    assert all(math.isnan(r[k]) for k in ("hit_original", "hit_true", "hit_opposite", "hit_both"))

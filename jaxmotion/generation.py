@@ -170,27 +170,52 @@ def _check_text(text) -> str:
     return text
 
 
-def _embed(text: str, cache_dir: Path | None) -> np.ndarray:
-    """The MiniLM embedding ``[1, 384]`` of ``text``, through the project's on-disk
-    :class:`~jaxmotion.text.EmbeddingCache` keyed by the weights file's size and mtime (its
+def _embed(text: str, cache_dir: Path | None, text_tokens: int = 0):
+    """The text condition of ``text`` for a batch of one: the MiniLM embedding ``[1, 384]``,
+    or, for an ADM that reads ``text_tokens`` > 0 token states, ``{"pooled" [1, 384],
+    "tokens" [1, L, 384], "mask" [1, L]}`` (as
+    :meth:`~jaxmotion.sample.AffordancePipeline.embed_text`). Both go through the project's
+    on-disk caches (:class:`~jaxmotion.text.EmbeddingCache`,
+    :class:`~jaxmotion.text.TokenCache`), keyed by the weights file's size and mtime (its
     checksum would mean reading 90 MB): a repeated command never loads the encoder."""
-    from jaxmotion.text import EmbeddingCache, cache_key
+    from jaxmotion.text import EmbeddingCache, TokenCache, cache_key, pad_tokens
     from jaxmotion.text.minilm import minilm_dir
 
+    def fresh_states():
+        return [s.astype(np.float16) for s in _text_encoder().token_states([text])]
+
     if cache_dir is None:
-        return np.asarray(_text_encoder()([text]), np.float32)
-    st = (minilm_dir() / "model.safetensors").stat()
-    key = cache_key("minilm", f"size={st.st_size},mtime={st.st_mtime_ns}", text)
-    cache = EmbeddingCache(cache_dir)
-    hit = cache.get([key])
-    if key in hit:
-        return np.asarray(hit[key], np.float32)[None]
-    emb = np.asarray(_text_encoder()([text]), np.float32)
-    try:
-        cache.put([key], emb)
-    except OSError:
-        pass  # read-only cache: fine
-    return emb
+        emb = np.asarray(_text_encoder()([text]), np.float32)
+        states = fresh_states() if text_tokens else None
+    else:
+        st = (minilm_dir() / "model.safetensors").stat()
+        version = f"size={st.st_size},mtime={st.st_mtime_ns}"
+        key = cache_key("minilm", version, text)
+        cache = EmbeddingCache(cache_dir)
+        hit = cache.get([key])
+        if key in hit:
+            emb = np.asarray(hit[key], np.float32)[None]
+        else:
+            emb = np.asarray(_text_encoder()([text]), np.float32)
+            try:
+                cache.put([key], emb)
+            except OSError:
+                pass  # read-only cache: fine
+        states = None
+        if text_tokens:
+            tkey = cache_key("minilm:tokens", version, text)
+            tcache = TokenCache(cache_dir.parent / (cache_dir.name + "-tokens"))
+            found = tcache.get([tkey])
+            states = [found[tkey]] if tkey in found else fresh_states()
+            if tkey not in found:
+                try:
+                    tcache.put([tkey], states)
+                except OSError:
+                    pass
+    if not text_tokens:
+        return emb
+    tokens, mask = pad_tokens(states, int(text_tokens), emb.shape[1])
+    return {"pooled": emb, "tokens": tokens, "mask": mask}
 
 
 def _weights_config(path) -> dict:
@@ -237,8 +262,9 @@ def _aot_call(cache_dir: Path | None, name: str, fingerprint: str, build, args):
     import jax
     from jax import export as jexport
 
-    specs = [jax.ShapeDtypeStruct(np.shape(a), np.asarray(a).dtype) for a in args]
-    fingerprint = _digest(fingerprint, _code_digest(), [(s.shape, str(s.dtype)) for s in specs])
+    specs = jax.tree.map(lambda a: jax.ShapeDtypeStruct(np.shape(a), np.asarray(a).dtype), args)
+    fingerprint = _digest(fingerprint, _code_digest(),
+                          [(s.shape, str(s.dtype)) for s in jax.tree.leaves(specs)])
     path = None if cache_dir is None else Path(cache_dir) / f"{name}-{fingerprint}.jaxexport"
     if path is not None and path.is_file():
         try:
@@ -534,7 +560,8 @@ def generate(
     spec = CropSpec(**{**crop_cfg.__dict__, "rotate": False})
     t_frames, fps = int(mcfg["max_frames"]), 30.0
     lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
-    emb = _embed(text, xla_cache / "text-embeddings")
+    adm_tokens = int(_weights_config(adm_file).get("model", {}).get("text_tokens", 0))
+    emb = _embed(text, xla_cache / "text-embeddings", adm_tokens)
     key = jax.random.key(int(seed))
     k_tiles, k_main = jax.random.split(key)
     adm_w, amdm_w = _guidance_pair(guidance)
@@ -568,7 +595,7 @@ def generate(
                                                   adm=adm_sampler, amdm=amdm_sampler)
 
     args = (np.asarray(jax.random.key_data(k_main)), tile(pts), tile(colors),
-            tile(emb[0]), np.ones((k, t_frames), bool))
+            jax.tree.map(lambda a: tile(a[0]), emb), np.ones((k, t_frames), bool))
     res = _aot_call(aot_dir, "sample", _digest(versions, adm_sampler, amdm_sampler, Path(adm_file),
                                               Path(amdm_file)),
                     build_sampler, args)
@@ -697,7 +724,7 @@ def _adm_maps(get_pipe, crops, emb, key, sampler) -> np.ndarray:
     b = len(crops)
     return np.asarray(jax.device_get(get_pipe().sample_affordance(
         key, np.stack([c[2] for c in crops]), np.stack([c[3] for c in crops]),
-        np.broadcast_to(emb[0], (b, emb.shape[1])), sampler)))
+        jax.tree.map(lambda a: np.broadcast_to(a[0], (b, *a.shape[1:])), emb), sampler)))
 
 
 def _choose_region(get_pipe, room, text, emb, spec, key, sampler, seed, lo, hi):

@@ -6,9 +6,15 @@ stage. The per-example functions are written for a single crop and lifted with
 ``jax.vmap``, so one compiled program samples any batch of scenes × texts × seeds:
 
     pipe = AffordancePipeline.from_workdirs("runs/adm", "runs/amdm")
-    out = pipe.sample(key, points [B,N,3], colors [B,N,3], text_emb [B,D], mask [B,T])
+    text = pipe.embed_text(["sit on the chair", ...])   # the text condition, B texts
+    out = pipe.sample(key, points [B,N,3], colors [B,N,3], text, mask [B,T])
     out["joints"]      # [B, T, 22, 3] crop frame, metres
     out["affordance"]  # [B, N, 6] in [0, 1]
+
+The text condition is the pooled sentence embedding ``[B, D]``, or, for an ADM that reads
+words (``ADMConfig.text_tokens > 0``), the mapping ``{"pooled" [B, D], "tokens" [B, L, D],
+"mask" [B, L]}``: :meth:`AffordancePipeline.embed_text` builds the right one, and
+:func:`take_text` indexes either.
 
 ``jaxmotion sample`` runs it over a dataset split and writes an ``.npz``.
 """
@@ -25,7 +31,12 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-__all__ = ["AffordancePipeline", "SamplerSpec", "load_cases", "sample_split"]
+__all__ = ["AffordancePipeline", "SamplerSpec", "load_cases", "sample_split", "take_text"]
+
+
+def take_text(text, index):
+    """Rows ``index`` of a text condition (an array, or the word-level mapping)."""
+    return jax.tree.map(lambda a: np.asarray(a)[index], text)
 
 
 @dataclass(frozen=True)
@@ -114,8 +125,32 @@ class AffordancePipeline:
         pipe.amdm_config = mcfg  # the AMDM run's config.json (crop, max_frames, ...)
         return pipe
 
+    @property
+    def text_tokens(self) -> int:
+        """Token states per text the ADM reads (0 = the pooled embedding only)."""
+        return int(getattr(self.adm_net.adm.cfg, "text_tokens", 0))
+
+    def embed_text(self, texts, encoder=None, *, token_cache=None):
+        """The text condition of ``texts`` for :meth:`sample`: pooled MiniLM embeddings
+        ``[B, D]``, or, when the ADM reads words, ``{"pooled", "tokens", "mask"}``. Token
+        states go through float16 (as :class:`~jaxmotion.text.TokenCache` stores them, so
+        cached and fresh ones are equal); ``token_cache`` reuses and fills such a cache."""
+        from jaxmotion.text import load_text_encoder, pad_tokens
+
+        texts = list(texts)
+        encoder = encoder if encoder is not None else load_text_encoder("minilm")
+        pooled = np.asarray(encoder(texts), np.float32)
+        if not self.text_tokens:
+            return pooled
+        states = (token_cache.states(encoder, texts) if token_cache is not None else
+                  [s.astype(np.float16) for s in encoder.token_states(texts)])
+        tokens, mask = pad_tokens(states, self.text_tokens, encoder.dim)
+        return {"pooled": pooled, "tokens": tokens, "mask": mask}
+
     # -- one example (vmapped below) ---------------------------------------------------------
-    def _affordance_one(self, key, points, colors, text_emb, spec: SamplerSpec):
+    def _affordance_one(self, key, points, colors, text, spec: SamplerSpec):
+        from jaxmotion.models import adm_text_cond
+
         net = self.adm_net
         feats = net.features(points[None], colors[None])
         fixed = {"features": feats, "xyz": points[None]}
@@ -124,12 +159,20 @@ class AffordancePipeline:
             return net.adm(x, t, {**cond, **_tile(fixed, x.shape[0])}, deterministic=True)
 
         shape = (1, points.shape[0], 6)
-        x0 = spec.run(key, denoise, self.adm_schedule, shape, {"text": text_emb[None]},
-                      lambda c: {"text": jnp.zeros_like(c["text"])})
+        text = jax.tree.map(lambda a: jnp.asarray(a)[None], text)
+        if self.text_tokens and not isinstance(text, dict):
+            raise ValueError(f"this ADM reads word-level text ({self.text_tokens} tokens): pass "
+                             "the text condition of AffordancePipeline.embed_text, not a pooled "
+                             "embedding array")
+        x0 = spec.run(key, denoise, self.adm_schedule, shape, adm_text_cond(text),
+                      lambda c: jax.tree.map(jnp.zeros_like, c))
         aff = x0[0] * self.a_std + self.a_mean
         return jnp.clip(aff, 0.0, 1.0)
 
-    def _motion_one(self, key, points, scene_feat, text_emb, mask, spec: SamplerSpec):
+    def _motion_one(self, key, points, scene_feat, text, mask, spec: SamplerSpec):
+        from jaxmotion.models import pooled_text
+
+        text_emb = pooled_text(text)
         cfg = self.amdm.cfg
         if cfg.scene_input == "affordance":
             scene = {"xyz": points[None], "affordance": ((scene_feat - self.am_mean) / self.am_std)[None]}
@@ -177,7 +220,8 @@ class AffordancePipeline:
         return jax.jit(aff, static_argnums=0), jax.jit(mot, static_argnums=0)
 
     def sample_affordance(self, key, points, colors, text_emb, spec=SamplerSpec(steps=50)):
-        """``[B,N,3], [B,N,3], [B,D] -> [B,N,6]`` affordance maps in [0, 1]."""
+        """``[B,N,3], [B,N,3], text -> [B,N,6]`` affordance maps in [0, 1] (``text``: see
+        :meth:`embed_text`)."""
         keys = jax.random.split(key, points.shape[0])
         return self._jitted[0](spec, keys, points, colors, text_emb)
 
@@ -270,8 +314,7 @@ def sample_split(data_dir, split, adm_workdir, amdm_workdir, out, *, num_cases: 
     cases, spec = load_cases(data_dir, split, pipe.amdm_config, num_cases=num_cases, seed=seed,
                              num_points=num_points)
     max_frames = len(cases[0]["mask"])
-    encoder = load_text_encoder("minilm")
-    emb = encoder([c["text"] for c in cases])
+    emb = pipe.embed_text([c["text"] for c in cases], load_text_encoder("minilm"))
     rows = [(ci, k) for ci in range(len(cases)) for k in range(samples_per_case)]
     joints = np.zeros((len(cases), samples_per_case, max_frames, 22, 3), np.float32)
     affs = np.zeros((len(cases), samples_per_case, spec.num_points, 6), np.float32)
@@ -282,7 +325,7 @@ def sample_split(data_dir, split, adm_workdir, amdm_workdir, out, *, num_cases: 
         idx = [ci for ci, _ in chunk] + [chunk[-1][0]] * pad  # static batch: pad the last one
         res = pipe.sample(jax.random.fold_in(key, start),
                           np.stack([cases[i]["points"] for i in idx]),
-                          np.stack([cases[i]["colors"] for i in idx]), emb[idx],
+                          np.stack([cases[i]["colors"] for i in idx]), take_text(emb, idx),
                           np.stack([cases[i]["mask"] for i in idx]), adm=adm, amdm=amdm)
         res = jax.device_get(res)
         for j, (ci, k) in enumerate(chunk):

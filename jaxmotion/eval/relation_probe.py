@@ -84,7 +84,7 @@ def relation_probe(data_dir, adm, amdm, *, splits=("val", "test"), num_cases: in
         col = np.stack([p[0]["colors"] for p in chunk])
         key = jax.random.fold_in(jax.random.key(seed), lo)
         for form in range(3):  # original, true, opposite: the same crop and noise for each
-            emb = np.asarray(encoder([p[1 + form] for p in chunk]))
+            emb = pipe.embed_text([p[1 + form] for p in chunk], encoder)
             maps = np.asarray(pipe.sample_affordance(key, pts, col, emb, spec))
             for i, p in enumerate(chunk):
                 g = affordance_grounding_from_map(maps[i], p[0]["target_mask"])

@@ -241,7 +241,7 @@ def evaluate(
     import jax
     from tqdm.auto import tqdm
 
-    from jaxmotion.sample import AffordancePipeline, SamplerSpec, load_cases
+    from jaxmotion.sample import AffordancePipeline, SamplerSpec, load_cases, take_text
     from jaxmotion.text import load_text_encoder
 
     if samples < 1 or replications < 1 or num_cases < 1:
@@ -265,7 +265,7 @@ def evaluate(
         t_model = time.perf_counter()
         pipe = AffordancePipeline.from_workdirs(spec.adm, spec.amdm)
         cases, _ = load_cases(data_dir, split, pipe.amdm_config, num_cases=num_cases, seed=seed)
-        emb = encoder([c["text"] for c in cases])
+        emb = pipe.embed_text([c["text"] for c in cases], encoder)
         adm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.adm_guidance)
         amdm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.amdm_guidance,
                                    consistency=spec.consistency)
@@ -291,7 +291,7 @@ def evaluate(
                 idx = [ci for ci, _ in chunk] + [chunk[-1][0]] * (batch_size - len(chunk))
                 res = jax.device_get(pipe.sample(
                     jax.random.fold_in(key, start), np.stack([cases[i]["points"] for i in idx]),
-                    np.stack([cases[i]["colors"] for i in idx]), emb[idx],
+                    np.stack([cases[i]["colors"] for i in idx]), take_text(emb, idx),
                     np.stack([cases[i]["mask"] for i in idx]), adm=adm_sampler, amdm=amdm_sampler,
                     affordance=gt_maps[idx] if oracle else None))
                 for j, (ci, k) in enumerate(chunk):

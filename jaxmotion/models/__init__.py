@@ -17,7 +17,8 @@ the module. Presets: ``ADMConfig.tiny() / cpu() / paper()`` etc.; the CPU defaul
 2048-point crops (see :mod:`.configs`).
 """
 
-from jaxmotion.models.adm import ADM, ADMMLP, ADMPointTransformer, make_adm
+from jaxmotion.models.adm import (ADM, ADMMLP, ADMPointTransformer, adm_text_cond, make_adm,
+                                 pooled_text)
 from jaxmotion.models.amdm import AMDM
 from jaxmotion.models.configs import (PRESET_NAMES, ADMConfig, AMDMConfig, PointTransformerConfig,
                                       preset_overrides)
@@ -27,7 +28,7 @@ from jaxmotion.models.point_transformer import (PointTransformerEncoder, PointTr
 from jaxmotion.models.segmentation import PointTransformerSeg, segmentation_loss
 
 __all__ = [
-    "ADM", "ADMMLP", "ADMPointTransformer", "make_adm", "AMDM", "PointTransformerSeg",
+    "ADM", "ADMMLP", "ADMPointTransformer", "make_adm", "adm_text_cond", "pooled_text", "AMDM", "PointTransformerSeg",
     "segmentation_loss", "PointTransformerEncoder", "PointTransformerUNet", "build_geometry",
     "farthest_point_sampling", "knn", "PointTransformerConfig", "ADMConfig", "AMDMConfig",
     "PRESET_NAMES", "preset_overrides", "param_count", "sinusoidal_embedding",

@@ -9,12 +9,17 @@ x0 prediction of the normalised affordance, with
   features (computed outside: the module never sees the backbone);
 - ``cond["xyz"] [B, N, 3]``: point positions (crop frame, metres);
 - optional ``cond["drop_text"] [B]`` (bool / 0-1): zero those rows' text embedding inside the
-  model; the caller may equally zero ``cond["text"]`` itself.
+  model (and mask out their token latents); the caller may equally zero ``cond["text"]`` itself
+  (and ``cond["text_mask"]``);
+- with ``ADMConfig.text_tokens = L > 0`` (Perceiver only): ``cond["text_tokens"] [B, L,
+  text_dim]``, the text encoder's per-token states, and ``cond["text_mask"] [B, L]`` (True =
+  a real token). A row whose mask is all False reads no token: the model then sees exactly
+  what the pooled-only model would.
 
 Variants (``ADMConfig.arch``; :func:`make_adm` builds the right one):
 
 - :class:`ADM` (``perceiver``, the paper's): points -> Linear -> point width; latents =
-  [text token, time token]; encode = cross-attention latents <- points; ``self_layers``
+  [text token, time token] (+ L word latents with ``text_tokens = L``); encode = cross-attention latents <- points; ``self_layers``
   self-attention layers on the latents; decode = cross-attention points <- latents (queries =
   Linear of the point array); Linear -> A. Pre-norm Perceiver IO layers as the authors' code.
   Permutation-equivariant over points; memory linear in N.
@@ -39,7 +44,21 @@ from jaxmotion.models.configs import ADMConfig
 from jaxmotion.models.layers import MLP, PerceiverLayer, TimestepEmbedder
 from jaxmotion.models.point_transformer import Norm, PointTransformerUNet
 
-__all__ = ["ADM", "ADMMLP", "ADMPointTransformer", "make_adm"]
+__all__ = ["ADM", "ADMMLP", "ADMPointTransformer", "adm_text_cond", "make_adm", "pooled_text"]
+
+
+def adm_text_cond(text) -> dict:
+    """The ADM cond entries of a text condition: a pooled embedding array ``[B, D]``, or a
+    word-level mapping ``{"pooled": [B, D], "tokens": [B, L, D], "mask": [B, L]}``."""
+    if isinstance(text, dict):
+        return {"text": text["pooled"], "text_tokens": text["tokens"], "text_mask": text["mask"]}
+    return {"text": text}
+
+
+def pooled_text(text):
+    """The pooled sentence embedding ``[B, D]`` of a text condition (see
+    :func:`adm_text_cond`), which is all the AMDM reads."""
+    return text["pooled"] if isinstance(text, dict) else text
 
 
 def _inputs(cfg: ADMConfig, x, t, cond):
@@ -64,6 +83,23 @@ def _inputs(cfg: ADMConfig, x, t, cond):
     return x, t, text, out["features"], out["xyz"]
 
 
+def _token_inputs(cfg: ADMConfig, b: int, cond):
+    """``(tokens [B, L, Dt], mask [B, L] bool)`` of a word-level ADM, drop_text applied."""
+    want = (b, cfg.text_tokens, cfg.text_dim)
+    if "text_tokens" not in cond or "text_mask" not in cond:
+        raise KeyError(f"this ADM reads word-level text (text_tokens={cfg.text_tokens}): cond "
+                       f"needs 'text_tokens' {list(want)} and 'text_mask' {list(want[:2])}; got "
+                       f"keys {sorted(cond)}")
+    tokens = jnp.asarray(cond["text_tokens"], jnp.float32)
+    mask = jnp.asarray(cond["text_mask"]).astype(bool)
+    if tokens.shape != want or mask.shape != want[:2]:
+        raise ValueError(f"cond['text_tokens'] must be {want} and cond['text_mask'] "
+                         f"{want[:2]}, got {tokens.shape} and {mask.shape}")
+    if cond.get("drop_text") is not None:
+        mask = mask & ~jnp.asarray(cond["drop_text"]).astype(bool).reshape(b, 1)
+    return tokens, mask
+
+
 class ADM(nnx.Module):
     """The paper's Perceiver ADM (see the module docstring)."""
 
@@ -73,6 +109,9 @@ class ADM(nnx.Module):
         kw = dict(widening=cfg.widening, dropout=cfg.dropout, rngs=rngs)
         self.time_embed = TimestepEmbedder(cfg.time_dim, cfg.time_dim, rngs=rngs)
         self.text_proj = nnx.Linear(cfg.text_dim, lw, rngs=rngs)
+        if cfg.text_tokens:
+            self.token_norm = nnx.LayerNorm(cfg.text_dim, epsilon=1e-5, rngs=rngs)
+            self.token_proj = nnx.Linear(cfg.text_dim, lw, rngs=rngs)
         self.time_proj = nnx.Linear(cfg.time_dim, lw, rngs=rngs)
         self.point_in = nnx.Linear(cfg.affordance_dim + cfg.feature_dim + 3, pw, rngs=rngs)
         self.encode = PerceiverLayer(lw, pw, h, **kw)
@@ -86,10 +125,16 @@ class ADM(nnx.Module):
         x, t, text, feats, xyz = _inputs(self.cfg, x, t, cond)
         points = self.point_in(jnp.concatenate([x, feats, xyz], axis=-1))  # [B, N, pw]
         latents = jnp.stack([self.text_proj(text), self.time_proj(self.time_embed(t))], axis=1)
+        latent_mask = None
+        if self.cfg.text_tokens:
+            tokens, tmask = _token_inputs(self.cfg, x.shape[0], cond)
+            words = self.token_proj(self.token_norm(tokens))  # [B, L, lw]
+            latents = jnp.concatenate([latents, words], axis=1)
+            latent_mask = jnp.concatenate([jnp.ones((x.shape[0], 2), bool), tmask], axis=1)
         latents = self.encode(latents, points, deterministic=det)
         for layer in self.process:
-            latents = layer(latents, deterministic=det)
-        y = self.decode(self.decode_in(points), latents, deterministic=det)
+            latents = layer(latents, key_mask=latent_mask, deterministic=det)
+        y = self.decode(self.decode_in(points), latents, key_mask=latent_mask, deterministic=det)
         return self.out(y)
 
 

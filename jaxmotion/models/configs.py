@@ -163,7 +163,14 @@ class ADMConfig(_Presets):
       feature_dim: width of the frozen backbone's per-point features (its ``out_dim``).
       text_dim: text embedding width (384 all-MiniLM-L6-v2, 512 CLIP ViT-B/32 as in the paper).
       time_dim: width of the sinusoidal timestep embedding and its MLP.
-      point_width / latent_width: Perceiver widths of the point array and the 2 latents.
+      point_width / latent_width: Perceiver widths of the point array and the latents.
+      text_tokens: word-level text conditioning (``perceiver`` only). 0 (the paper's): the
+        latents are [text, time], the text being one pooled sentence vector. L > 0: the
+        first L token states of the text encoder (``[CLS]`` and ``[SEP]`` included) become L
+        more latents (LayerNorm, Linear), padded tokens masked out of every attention. A
+        pooled vector averages the words away: "the chair closest to the window" and "...
+        farthest from the window" have cosine 0.90 in MiniLM; token latents keep the relation
+        word and the anchor's name apart.
       num_heads, self_layers: attention heads; self-attention layers on the latents.
       widening: MLP widening factor of the Perceiver layers.
       dropout: attention dropout of the Perceiver (residual dropout is 0, as the authors').
@@ -180,6 +187,7 @@ class ADMConfig(_Presets):
     latent_width: int = 128
     num_heads: int = 4
     self_layers: int = 2
+    text_tokens: int = 0
     widening: int = 1
     dropout: float = 0.1
     mlp_dims: tuple[int, ...] = (128, 128)
@@ -205,6 +213,12 @@ class ADMConfig(_Presets):
             raise ValueError(f"time_dim must be even (sin/cos pairs), got {self.time_dim}")
         if not 0.0 <= self.dropout < 1.0:
             raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
+        if self.text_tokens < 0:
+            raise ValueError(f"text_tokens must be >= 0 (0 = pooled text only), got "
+                             f"{self.text_tokens}")
+        if self.text_tokens and self.arch != "perceiver":
+            raise ValueError(f"text_tokens={self.text_tokens} needs arch='perceiver' (the "
+                             f"{self.arch!r} ADM reads the pooled text only); set text_tokens=0")
 
 
 @dataclasses.dataclass(frozen=True)

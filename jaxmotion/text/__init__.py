@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import threading
 
-from jaxmotion.text.cache import EmbeddingCache, cache_key, encode_cached
+from jaxmotion.text.cache import EmbeddingCache, TokenCache, cache_key, encode_cached, pad_tokens
 from jaxmotion.text.minilm import PIP_COMMAND, MiniLM, TextEncoder, load_minilm, minilm_dir
 
 __all__ = [
@@ -24,10 +24,12 @@ __all__ = [
     "EmbeddingCache",
     "MiniLM",
     "TextEncoder",
+    "TokenCache",
     "cache_key",
     "encode_cached",
     "load_text_encoder",
     "minilm_dir",
+    "pad_tokens",
 ]
 
 # name -> loader; names are matched case-insensitively, aliases map to the same loader.

@@ -24,7 +24,7 @@ import numpy as np
 
 from jaxmotion._atomic import atomic_open
 
-__all__ = ["EmbeddingCache", "cache_key", "encode_cached"]
+__all__ = ["EmbeddingCache", "TokenCache", "cache_key", "encode_cached", "pad_tokens"]
 
 
 def cache_key(model_name: str, checksum: str, text: str) -> str:
@@ -56,7 +56,7 @@ class EmbeddingCache:
         if not self.path.is_dir():
             return
         for shard in sorted(self.path.glob("*.npz")):
-            if shard.name in self._loaded:
+            if shard.name in self._loaded or shard.name.startswith("tok-"):  # TokenCache's
                 continue
             try:
                 with np.load(shard, allow_pickle=False) as z:
@@ -135,3 +135,107 @@ class EmbeddingCache:
 def encode_cached(encoder, texts, cache_dir) -> np.ndarray:
     """Embed ``texts`` ``[B, D]`` with ``encoder``, reusing/filling the cache in ``cache_dir``."""
     return EmbeddingCache(cache_dir).encode(encoder, texts)
+
+
+def pad_tokens(states, max_tokens: int, dim: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A list of ``[n_i, D]`` token states -> ``(tokens [B, max_tokens, D] float32,
+    mask [B, max_tokens] bool)``: the first ``max_tokens`` of each, zero-padded."""
+    if max_tokens < 1:
+        raise ValueError(f"max_tokens must be >= 1, got {max_tokens}")
+    d = dim if dim is not None else (states[0].shape[-1] if len(states) else 0)
+    out = np.zeros((len(states), max_tokens, d), np.float32)
+    mask = np.zeros((len(states), max_tokens), bool)
+    for i, s in enumerate(states):
+        n = min(len(s), max_tokens)
+        out[i, :n] = s[:n]
+        mask[i, :n] = True
+    return out, mask
+
+
+class TokenCache:
+    """A folder of per-token text state shards (word-level text conditioning).
+
+    Each shard holds ``keys [K]``, ``lengths [K]`` and ``states [sum(lengths), D]`` float16:
+    every text's token states, all of its tokens, concatenated. Keys are
+    :func:`cache_key` of ``"<encoder name>:tokens"``, so they never collide with the pooled
+    embeddings of :class:`EmbeddingCache` (the two may share a folder). Shards are written
+    atomically, as :class:`EmbeddingCache`'s.
+
+    States are stored in float16 (half the disk and memory: 12k texts of ~16 tokens are
+    ~150 MB); :meth:`encode` rounds freshly computed states through float16 too, so a text
+    gets the same values whether it was cached or not.
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.hits = 0
+        self.misses = 0
+        self._mem: dict[str, np.ndarray] = {}
+        self._loaded: set[str] = set()
+        self.refresh()
+
+    def refresh(self) -> None:
+        """Read shards written since the last refresh."""
+        if not self.path.is_dir():
+            return
+        for shard in sorted(self.path.glob("tok-*.npz")):
+            if shard.name in self._loaded:
+                continue
+            try:
+                with np.load(shard, allow_pickle=False) as z:
+                    keys, lengths, states = z["keys"], z["lengths"], z["states"]
+            except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as e:
+                warnings.warn(f"skipping unreadable token shard {shard}: {e}", stacklevel=2)
+                continue
+            offsets = np.concatenate([[0], np.cumsum(lengths)])
+            for i, k in enumerate(keys.tolist()):
+                self._mem[k] = states[offsets[i]:offsets[i + 1]]
+            self._loaded.add(shard.name)
+
+    def __len__(self) -> int:
+        return len(self._mem)
+
+    def get(self, keys) -> dict[str, np.ndarray]:
+        """The cached ``[n, D]`` float16 states among ``keys``; counts hits and misses."""
+        keys = list(keys)
+        found = {k: self._mem[k] for k in keys if k in self._mem}
+        self.hits += sum(k in found for k in keys)
+        self.misses += sum(k not in found for k in keys)
+        return found
+
+    def put(self, keys, states) -> Path | None:
+        """Store ``states[i]`` (``[n_i, D]``) under ``keys[i]`` in one new shard."""
+        keys = list(keys)
+        if len(states) != len(keys):
+            raise ValueError(f"{len(keys)} keys but {len(states)} state arrays")
+        if not keys:
+            return None
+        states = [np.asarray(s, np.float16) for s in states]
+        lengths = np.array([len(s) for s in states], np.int64)
+        name = "tok-" + hashlib.sha256("\n".join(keys).encode()).hexdigest()[:24] + ".npz"
+        shard = self.path / name
+        with atomic_open(shard, "wb") as f:
+            np.savez(f, keys=np.array(keys, dtype="<U64"), lengths=lengths,
+                     states=np.concatenate(states, axis=0))
+        for k, v in zip(keys, states):
+            self._mem[k] = v
+        self._loaded.add(name)
+        return shard
+
+    def states(self, encoder, texts) -> list[np.ndarray]:
+        """Per text, its token states ``[n_i, D]`` float16 (cached ones reused, new ones
+        computed with ``encoder.token_states`` once and stored)."""
+        texts = list(texts)
+        keys = [cache_key(encoder.name + ":tokens", encoder.checksum, t) for t in texts]
+        found = self.get(keys)
+        missing: dict[str, str] = {}
+        for k, t in zip(keys, texts):
+            if k not in found:
+                missing.setdefault(k, t)
+        if missing:
+            self.put(list(missing), encoder.token_states(list(missing.values())))
+        return [self._mem[k] for k in keys]
+
+    def encode(self, encoder, texts, max_tokens: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(tokens [B, max_tokens, D] float32, mask [B, max_tokens] bool)`` for ``texts``."""
+        return pad_tokens(self.states(encoder, texts), max_tokens, encoder.dim)

@@ -288,6 +288,12 @@ class TextEncoder:
 
         self._forward = forward
 
+        @jax.jit
+        def forward_tokens(state, ids, mask):
+            return nnx.merge(graphdef, state).hidden_states(ids, mask)
+
+        self._forward_tokens = forward_tokens
+
     @property
     def checksum(self) -> str:
         if self._checksum is None:
@@ -308,8 +314,12 @@ class TextEncoder:
                 return min(b, self.max_length)
         return self.max_length
 
-    def encode_ids(self, ids: list[list[int]], pad_to: int | None = None) -> np.ndarray:
-        """Embed pre-tokenised rows in one call, padded to ``pad_to`` (default: bucket)."""
+    def encode_ids(self, ids: list[list[int]], pad_to: int | None = None, *,
+                   tokens: bool = False) -> np.ndarray:
+        """Embed pre-tokenised rows in one call, padded to ``pad_to`` (default: bucket).
+
+        ``tokens=True``: the last hidden states ``[B, pad_to, dim]`` instead of the pooled,
+        normalised sentence embeddings ``[B, dim]`` (padding positions hold garbage)."""
         longest = max(len(r) for r in ids)
         t = pad_to if pad_to is not None else self.bucket_length(longest)
         if t < longest:
@@ -321,34 +331,53 @@ class TextEncoder:
         for i, r in enumerate(ids):
             arr[i, : len(r)] = r
             mask[i, : len(r)] = 1
-        out = self._forward(self._state, jnp.asarray(arr), jnp.asarray(mask))
+        fwd = self._forward_tokens if tokens else self._forward
+        out = fwd(self._state, jnp.asarray(arr), jnp.asarray(mask))
         return np.asarray(out[: len(ids)], dtype=np.float32)
 
-    def __call__(self, texts: list[str]) -> np.ndarray:
-        """Unit-norm embeddings ``[len(texts), dim]`` float32, in input order."""
+    def _chunks(self, texts):
+        """(ids per text, chunks of indices): sorted by length, never mixing length buckets in
+        a chunk, so short sentences are not padded to a long neighbour's length."""
         if isinstance(texts, str):
             raise TypeError("pass a list of strings, e.g. encoder([text]), not a single str")
-        texts = list(texts)
         for t in texts:
             if not isinstance(t, str):
                 raise TypeError(f"texts must be str, got {type(t).__name__}")
-        out = np.zeros((len(texts), self.dim), np.float32)
-        if not texts:
-            return out
-        ids = self.tokenize(texts)
-        # Sort by length and never mix length buckets in a chunk, so short sentences
-        # are not padded to a long neighbour's length.
+        ids = self.tokenize(texts) if texts else []
         order = sorted(range(len(ids)), key=lambda i: len(ids[i]))
-        chunk = []
+        chunks, chunk = [], []
         for i in order:
             if chunk and (
                 len(chunk) == self.batch_size
                 or self.bucket_length(len(ids[i])) != self.bucket_length(len(ids[chunk[0]]))
             ):
-                out[chunk] = self.encode_ids([ids[j] for j in chunk])
+                chunks.append(chunk)
                 chunk = []
             chunk.append(i)
-        out[chunk] = self.encode_ids([ids[j] for j in chunk])
+        if chunk:
+            chunks.append(chunk)
+        return ids, chunks
+
+    def __call__(self, texts: list[str]) -> np.ndarray:
+        """Unit-norm embeddings ``[len(texts), dim]`` float32, in input order."""
+        texts = texts if isinstance(texts, str) else list(texts)
+        ids, chunks = self._chunks(texts)
+        out = np.zeros((len(ids), self.dim), np.float32)
+        for chunk in chunks:
+            out[chunk] = self.encode_ids([ids[j] for j in chunk])
+        return out
+
+    def token_states(self, texts: list[str]) -> list[np.ndarray]:
+        """Per text, the last hidden state of each of its tokens, ``[CLS]`` and ``[SEP]``
+        included: a list of ``[n_tokens_i, dim]`` float32 arrays, in input order. These are
+        the vectors the sentence embedding averages; word-level text conditioning reads them."""
+        texts = texts if isinstance(texts, str) else list(texts)
+        ids, chunks = self._chunks(texts)
+        out: list[np.ndarray] = [None] * len(ids)  # type: ignore[list-item]
+        for chunk in chunks:
+            states = self.encode_ids([ids[j] for j in chunk], tokens=True)
+            for row, j in enumerate(chunk):
+                out[j] = states[row, : len(ids[j])]
         return out
 
     def __repr__(self):

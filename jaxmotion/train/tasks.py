@@ -68,6 +68,10 @@ class _DataTask:
 
     needs_text = True
 
+    def text_tokens(self, cfg) -> int:
+        """Token states per text the batches need (0 = the pooled embedding only)."""
+        return 0
+
     def _text(self, cfg):
         if not hasattr(self, "_encoder"):
             from jaxmotion.text import EmbeddingCache, load_text_encoder
@@ -81,11 +85,27 @@ class _DataTask:
             self._cache = EmbeddingCache(cache_dir)
         return self._encoder, self._cache
 
+    def _token_cache(self, cfg):
+        if not hasattr(self, "_tokens"):
+            from jaxmotion.text import TokenCache
+
+            cache_dir = Path(cfg.data_dir) / ".cache" / "text-tokens"
+            try:
+                cache_dir.mkdir(parents=True, exist_ok=True)
+            except OSError:
+                cache_dir = Path(cfg.workdir) / "text_token_cache"
+            self._tokens = TokenCache(cache_dir)
+        return self._tokens
+
     def _prepare(self, cfg, raw: dict) -> dict:
         out = {k: v for k, v in raw.items() if isinstance(v, np.ndarray)}
         if self.needs_text:
             encoder, cache = self._text(cfg)
             out["text_emb"] = np.asarray(cache.encode(encoder, raw["text"]), np.float32)
+            n = self.text_tokens(cfg)
+            if n:
+                out["text_tokens"], out["text_mask"] = self._token_cache(cfg).encode(
+                    encoder, raw["text"], n)
         return out
 
     def train_batches(self, cfg, start_step: int):
@@ -153,8 +173,20 @@ class ADMNet(nnx.Module):
         return jax.lax.stop_gradient(feats)
 
 
+def _text_condition(batch):
+    """A batch's text condition: the pooled embedding, or the word-level mapping (see
+    :func:`jaxmotion.models.adm_text_cond`) when the batch carries token states."""
+    if "text_tokens" in batch:
+        return {"pooled": batch["text_emb"], "tokens": batch["text_tokens"],
+                "mask": batch["text_mask"]}
+    return batch["text_emb"]
+
+
 class ADMTask(_DataTask):
     trainable = nnx.All(nnx.Param, nnx.PathContains("adm"))
+
+    def text_tokens(self, cfg) -> int:
+        return int(cfg.model.text_tokens)
 
     def build_model(self, cfg, rngs):
         from jaxmotion.diffusion import make_schedule
@@ -187,15 +219,18 @@ class ADMTask(_DataTask):
 
     def loss(self, model, batch, key, *, train):
         from jaxmotion.diffusion import diffusion_loss
+        from jaxmotion.models import adm_text_cond
 
         feats = model.features(batch["points"], batch["colors"])
         x0 = (batch["affordance"] - self.mean) / self.std
         fixed = {"features": feats, "xyz": batch["points"]}
 
         def denoise(x, t, cond):
-            return model.adm(x, t, {**cond, **fixed}, deterministic=not train)
+            return model.adm(x, t, {**adm_text_cond(cond["text"]), **fixed},
+                             deterministic=not train)
 
-        loss = diffusion_loss(key, denoise, self.schedule, x0, {"text": batch["text_emb"]},
+        # The pooled vector and the token states are one "text" entry: dropped together.
+        loss = diffusion_loss(key, denoise, self.schedule, x0, {"text": _text_condition(batch)},
                               cond_drop_prob=self.cond_drop if train else 0.0)
         return loss, {}
 
@@ -212,6 +247,10 @@ class AMDMNet(nnx.Module):
 class AMDMTask(_DataTask):
     trainable = nnx.All(nnx.Param, nnx.PathContains("amdm"))
 
+    def text_tokens(self, cfg) -> int:
+        # the frozen ADM that samples maps for training may read token states
+        return int(getattr(self, "adm_text_tokens", 0))
+
     def build_model(self, cfg, rngs):
         from jaxmotion.diffusion import make_schedule
         from jaxmotion.models import AMDM
@@ -226,6 +265,7 @@ class AMDMTask(_DataTask):
         adm_net = None
         if self.predicted_fraction > 0 and cfg.model.scene_input == "affordance":
             adm_net, self.adm_schedule, _ = load_adm(cfg.adm_workdir)
+            self.adm_text_tokens = int(adm_net.adm.cfg.text_tokens)
         return AMDMNet(AMDM(cfg.model, rngs=rngs), adm_net)
 
     def export_tensors(self) -> dict:
@@ -235,10 +275,12 @@ class AMDMTask(_DataTask):
     def _predicted_affordance(self, model, batch, key):
         """ADM-sampled (normalised) maps for the batch, DDIM with few steps, no gradients."""
         from jaxmotion.diffusion import ddim_sample
+        from jaxmotion.models import adm_text_cond
 
         net = model.adm_net
         feats = net.features(batch["points"], batch["colors"])
-        fixed = {"features": feats, "xyz": batch["points"], "text": batch["text_emb"]}
+        fixed = {"features": feats, "xyz": batch["points"],
+                 **adm_text_cond(_text_condition(batch))}
 
         def denoise(x, t, cond):
             return net.adm(x, t, fixed, deterministic=True)

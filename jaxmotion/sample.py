@@ -256,8 +256,11 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
     ``action``, ``points``, ``colors``, ``mask``, ``gt`` joints, ``target_mask`` (the target
     instance's points), ``target_class_mask`` (the points of every object of the target's
     semantic class, as the grounding metrics of the paper use; the instance when the scene
-    has no semantic labels), ``rotation``,
+    has no semantic labels), ``instance`` (the crop points' instance ids), ``objects`` (the
+    room's object table, a list of dicts, empty when the scene has none), ``rotation``,
     ``shift`` (``x_world = x_crop @ rotation + shift``), ``file``."""
+    import json
+
     from jaxmotion.config import config_from_dict
     from jaxmotion.data.config import CropConfig
     from jaxmotion.data.crop import CropSpec, crop_sample
@@ -277,6 +280,7 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
         with np.load(Path(data_dir) / "scenes" / f"{s['scene_id']}.npz") as sc:
             xyz, rgb, inst = sc["xyz"], sc["rgb"], sc["instance"]
             sem = sc["semantic"] if "semantic" in sc.files else None
+            objects = json.loads(str(sc["objects"])) if "objects" in sc.files else []
         c = crop_sample(np.random.default_rng([seed, i]), xyz, rgb, inst, s["joints"], s["mask"],
                         s["target_id"], spec)
         class_mask, on_target = c.target_mask, inst == s["target_id"]
@@ -291,8 +295,8 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
         gt[:t] = c.joints[:t]
         cases.append(dict(text=str(s["text"]), action=str(s["action"]), points=c.points,
                           colors=c.colors, mask=mask, gt=gt, target_mask=c.target_mask,
-                          target_class_mask=class_mask,
-                          rotation=c.rotation, shift=c.shift, file=f.name))
+                          target_class_mask=class_mask, instance=inst[c.indices],
+                          objects=objects, rotation=c.rotation, shift=c.shift, file=f.name))
     return cases, spec
 
 

@@ -37,6 +37,7 @@ def test_probe_runs_on_tiny_checkpoints(tiny_runs, capsys):
     for k in ("hit_original", "hit_true", "hit_opposite", "hit_both"):
         assert 0.0 <= r[k] <= 1.0
     assert r["hit_both"] <= min(r["hit_true"], r["hit_opposite"])
+    assert 0 <= r["anchor_visible_cases"] <= r["cases"]
     assert main(["--data", str(out["data"]), "--adm", str(root / "adm"), "--amdm",
                  str(root / "amdm"), "--splits", "test", "--cases", "4", "--steps", "1"]) == 0
     assert "canonical, opposite relation" in capsys.readouterr().out
@@ -49,3 +50,17 @@ def test_probe_without_qualifying_cases(tiny_runs, monkeypatch):
                        num_cases=4, steps=1)
     assert r["cases"] == 0
     assert all(math.isnan(r[k]) for k in ("hit_original", "hit_true", "hit_opposite", "hit_both"))
+
+
+def test_anchor_visible_counts_the_anchor_class_points_in_the_crop():
+    import numpy as np
+
+    objects = [{"id": 1, "category": "chair"}, {"id": 2, "category": "chair"},
+               {"id": 3, "category": "window"}, {"id": 4, "category": "door"}]
+    case = {"text": "sit on the chair closest to the window", "objects": objects,
+            "instance": np.array([1] * 40 + [2] * 30 + [4] * 50 + [3] * 4)}
+    assert not rp.anchor_visible(case)  # 4 window points: not enough
+    assert rp.anchor_visible(case, min_points=4)
+    case["instance"] = np.concatenate([case["instance"], [3]])
+    assert rp.anchor_visible(case)
+    assert not rp.anchor_visible({**case, "text": "sit on the chair closest to the sofa"})

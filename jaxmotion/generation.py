@@ -170,6 +170,20 @@ def _check_text(text) -> str:
     return text
 
 
+def _cached_one(cache, key, compute):
+    """``cache``'s entry ``key``, or ``compute()``'s value, then stored under it (a read-only
+    cache is fine: the value is just not kept)."""
+    found = cache.get([key])
+    if key in found:
+        return found[key]
+    value = compute()
+    try:
+        cache.put([key], [value])
+    except OSError:
+        pass
+    return value
+
+
 def _embed(text: str, cache_dir: Path | None, text_tokens: int = 0):
     """The text condition of ``text`` for a batch of one: the MiniLM embedding ``[1, 384]``,
     or, for an ADM that reads ``text_tokens`` > 0 token states, ``{"pooled" [1, 384],
@@ -181,40 +195,26 @@ def _embed(text: str, cache_dir: Path | None, text_tokens: int = 0):
     from jaxmotion.text import EmbeddingCache, TokenCache, cache_key, pad_tokens
     from jaxmotion.text.minilm import minilm_dir
 
-    def fresh_states():
-        return [s.astype(np.float16) for s in _text_encoder().token_states([text])]
+    def pooled():
+        return _text_encoder()([text])[0]
+
+    def words():
+        return _text_encoder().token_states([text])[0]
 
     if cache_dir is None:
-        emb = np.asarray(_text_encoder()([text]), np.float32)
-        states = fresh_states() if text_tokens else None
+        emb, states = pooled(), (words() if text_tokens else None)
     else:
         st = (minilm_dir() / "model.safetensors").stat()
         version = f"size={st.st_size},mtime={st.st_mtime_ns}"
-        key = cache_key("minilm", version, text)
-        cache = EmbeddingCache(cache_dir)
-        hit = cache.get([key])
-        if key in hit:
-            emb = np.asarray(hit[key], np.float32)[None]
-        else:
-            emb = np.asarray(_text_encoder()([text]), np.float32)
-            try:
-                cache.put([key], emb)
-            except OSError:
-                pass  # read-only cache: fine
+        emb = _cached_one(EmbeddingCache(cache_dir), cache_key("minilm", version, text), pooled)
         states = None
         if text_tokens:
-            tkey = cache_key("minilm:tokens", version, text)
-            tcache = TokenCache(cache_dir.parent / (cache_dir.name + "-tokens"))
-            found = tcache.get([tkey])
-            states = [found[tkey]] if tkey in found else fresh_states()
-            if tkey not in found:
-                try:
-                    tcache.put([tkey], states)
-                except OSError:
-                    pass
+            states = _cached_one(TokenCache(cache_dir.parent / (cache_dir.name + "-tokens")),
+                                 cache_key("minilm:tokens", version, text), words)
+    emb = np.asarray(emb, np.float32)[None]
     if not text_tokens:
         return emb
-    tokens, mask = pad_tokens(states, int(text_tokens), emb.shape[1])
+    tokens, mask = pad_tokens([states], int(text_tokens), emb.shape[1])
     return {"pooled": emb, "tokens": tokens, "mask": mask}
 
 

@@ -132,9 +132,10 @@ class AffordancePipeline:
 
     def embed_text(self, texts, encoder=None, *, token_cache=None):
         """The text condition of ``texts`` for :meth:`sample`: pooled MiniLM embeddings
-        ``[B, D]``, or, when the ADM reads words, ``{"pooled", "tokens", "mask"}``. Token
-        states go through float16 (as :class:`~jaxmotion.text.TokenCache` stores them, so
-        cached and fresh ones are equal); ``token_cache`` reuses and fills such a cache."""
+        ``[B, D]``, or, when the ADM reads words, ``{"pooled", "tokens", "mask"}`` (token
+        states rounded through float16 by :func:`~jaxmotion.text.pad_tokens`, so cached and
+        fresh ones are equal); ``token_cache`` (a :class:`~jaxmotion.text.TokenCache`) reuses
+        and fills such a cache."""
         from jaxmotion.text import load_text_encoder, pad_tokens
 
         texts = list(texts)
@@ -143,7 +144,7 @@ class AffordancePipeline:
         if not self.text_tokens:
             return pooled
         states = (token_cache.states(encoder, texts) if token_cache is not None else
-                  [s.astype(np.float16) for s in encoder.token_states(texts)])
+                  encoder.token_states(texts))
         tokens, mask = pad_tokens(states, self.text_tokens, encoder.dim)
         return {"pooled": pooled, "tokens": tokens, "mask": mask}
 

@@ -28,8 +28,8 @@ from jaxmotion.models.point_transformer import (PointTransformerEncoder, PointTr
 from jaxmotion.models.segmentation import PointTransformerSeg, segmentation_loss
 
 __all__ = [
-    "ADM", "ADMMLP", "ADMPointTransformer", "make_adm", "adm_text_cond", "pooled_text", "AMDM", "PointTransformerSeg",
-    "segmentation_loss", "PointTransformerEncoder", "PointTransformerUNet", "build_geometry",
+    "ADM", "ADMMLP", "ADMPointTransformer", "make_adm", "adm_text_cond", "pooled_text", "AMDM",
+    "PointTransformerSeg", "segmentation_loss", "PointTransformerEncoder", "PointTransformerUNet", "build_geometry",
     "farthest_point_sampling", "knn", "PointTransformerConfig", "ADMConfig", "AMDMConfig",
     "PRESET_NAMES", "preset_overrides", "param_count", "sinusoidal_embedding",
 ]

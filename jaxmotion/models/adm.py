@@ -19,8 +19,8 @@ x0 prediction of the normalised affordance, with
 Variants (``ADMConfig.arch``; :func:`make_adm` builds the right one):
 
 - :class:`ADM` (``perceiver``, the paper's): points -> Linear -> point width; latents =
-  [text token, time token] (+ L word latents with ``text_tokens = L``); encode = cross-attention latents <- points; ``self_layers``
-  self-attention layers on the latents; decode = cross-attention points <- latents (queries =
+  [text token, time token] (+ L word latents with ``text_tokens = L``); encode =
+  cross-attention latents <- points; ``self_layers`` self-attention layers on the latents; decode = cross-attention points <- latents (queries =
   Linear of the point array); Linear -> A. Pre-norm Perceiver IO layers as the authors' code.
   Permutation-equivariant over points; memory linear in N.
 - :class:`ADMMLP` (``mlp``): PointNet-style; per-point [x, features, xyz, text, time] through

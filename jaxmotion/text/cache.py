@@ -36,12 +36,13 @@ def cache_key(model_name: str, checksum: str, text: str) -> str:
     return h.hexdigest()
 
 
-class EmbeddingCache:
-    """A folder of embedding shards, with ``hits`` / ``misses`` counters.
+class _ShardCache:
+    """A folder of ``.npz`` shards read into memory (``key -> array``), with ``hits`` /
+    ``misses`` counters. Subclasses name their shards (``_PREFIX``), read one shard's entries
+    (``_entries``) and write their own layout (``put``, through :meth:`_write`)."""
 
-    ``get(keys)`` → ``{key: vector}`` for those present; ``put(keys, emb)``
-    writes one shard; ``encode(encoder, texts)`` does both around an encoder.
-    """
+    _PREFIX = ""  # shard file names start with it
+    _KIND = ""  # for the warning about an unreadable shard
 
     def __init__(self, path):
         self.path = Path(path)
@@ -51,22 +52,29 @@ class EmbeddingCache:
         self._loaded: set[str] = set()
         self.refresh()
 
+    def _owns(self, name: str) -> bool:
+        return name.startswith(self._PREFIX)
+
+    def _entries(self, z):
+        """``(key, array)`` pairs of an open shard; KeyError if it is not this cache's."""
+        raise NotImplementedError
+
     def refresh(self) -> None:
         """Read shards written since the last refresh (e.g. by another process)."""
         if not self.path.is_dir():
             return
-        for shard in sorted(self.path.glob("*.npz")):
-            if shard.name in self._loaded or shard.name.startswith("tok-"):  # TokenCache's
+        for shard in sorted(self.path.glob(f"{self._PREFIX}*.npz")):
+            if shard.name in self._loaded or not self._owns(shard.name):
                 continue
             try:
                 with np.load(shard, allow_pickle=False) as z:
-                    keys, emb = z["keys"], z["emb"]
+                    entries = list(self._entries(z))
             except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as e:
                 # not ours, or damaged by something else: skip, never crash training
-                warnings.warn(f"skipping unreadable embedding shard {shard}: {e}", stacklevel=2)
+                warnings.warn(f"skipping unreadable {self._KIND} shard {shard}: {e}",
+                              stacklevel=2)
                 continue
-            for k, v in zip(keys.tolist(), emb):
-                self._mem[k] = v
+            self._mem.update(entries)
             self._loaded.add(shard.name)
 
     def __len__(self) -> int:
@@ -76,12 +84,48 @@ class EmbeddingCache:
         return key in self._mem
 
     def get(self, keys) -> dict[str, np.ndarray]:
-        """The cached vectors among ``keys``; counts hits and misses."""
+        """The cached arrays among ``keys``; counts hits and misses."""
         keys = list(keys)
         hit = [k in self._mem for k in keys]  # per requested key, duplicates included
         self.hits += sum(hit)
         self.misses += len(keys) - sum(hit)
         return {k: self._mem[k] for k, h in zip(keys, hit) if h}
+
+    def _write(self, keys, values, **arrays) -> Path:
+        """One new shard of ``keys`` and ``arrays``, written atomically; ``values[i]`` is then
+        what ``keys[i]`` holds in memory."""
+        name = self._PREFIX + hashlib.sha256("\n".join(keys).encode()).hexdigest()[:24] + ".npz"
+        shard = self.path / name
+        with atomic_open(shard, "wb") as f:
+            np.savez(f, keys=np.array(keys, dtype="<U64"), **arrays)
+        self._mem.update(zip(keys, values))
+        self._loaded.add(name)
+        return shard
+
+    @staticmethod
+    def _missing(keys, texts, found) -> dict[str, str]:
+        """``key -> text`` of the texts not in ``found``: deduplicated, first-seen order."""
+        missing: dict[str, str] = {}
+        for k, t in zip(keys, texts):
+            if k not in found:
+                missing.setdefault(k, t)
+        return missing
+
+
+class EmbeddingCache(_ShardCache):
+    """A folder of embedding shards, with ``hits`` / ``misses`` counters.
+
+    ``get(keys)`` → ``{key: vector}`` for those present; ``put(keys, emb)``
+    writes one shard; ``encode(encoder, texts)`` does both around an encoder.
+    """
+
+    _KIND = "embedding"
+
+    def _owns(self, name: str) -> bool:
+        return not name.startswith(TokenCache._PREFIX)  # a folder may hold both kinds
+
+    def _entries(self, z):
+        return zip(z["keys"].tolist(), z["emb"])
 
     def put(self, keys, emb) -> Path | None:
         """Store ``emb[i]`` under ``keys[i]`` in a new shard, written atomically."""
@@ -91,14 +135,7 @@ class EmbeddingCache:
             raise ValueError(f"emb must be [{len(keys)}, D], got {emb.shape}")
         if not keys:
             return None
-        name = hashlib.sha256("\n".join(keys).encode()).hexdigest()[:24] + ".npz"
-        shard = self.path / name
-        with atomic_open(shard, "wb") as f:
-            np.savez(f, keys=np.array(keys, dtype="<U64"), emb=emb)
-        for k, v in zip(keys, emb):
-            self._mem[k] = v
-        self._loaded.add(name)
-        return shard
+        return self._write(keys, emb, emb=emb)
 
     def compact(self) -> None:
         """Rewrite all shards as one (atomically written before the old ones go)."""
@@ -118,10 +155,7 @@ class EmbeddingCache:
         texts = list(texts)
         keys = [cache_key(encoder.name, encoder.checksum, t) for t in texts]
         found = self.get(keys)
-        missing = {}  # key -> text, deduplicated, first-seen order
-        for k, t in zip(keys, texts):
-            if k not in found:
-                missing.setdefault(k, t)
+        missing = self._missing(keys, texts, found)
         if missing:
             new = encoder(list(missing.values()))
             self.put(list(missing), new)
@@ -139,7 +173,9 @@ def encode_cached(encoder, texts, cache_dir) -> np.ndarray:
 
 def pad_tokens(states, max_tokens: int, dim: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """A list of ``[n_i, D]`` token states -> ``(tokens [B, max_tokens, D] float32,
-    mask [B, max_tokens] bool)``: the first ``max_tokens`` of each, zero-padded."""
+    mask [B, max_tokens] bool)``: the first ``max_tokens`` of each, zero-padded. Values are
+    rounded through float16, as :class:`TokenCache` stores them, so a text gets the same
+    condition whether its states come from the cache or straight from the encoder."""
     if max_tokens < 1:
         raise ValueError(f"max_tokens must be >= 1, got {max_tokens}")
     d = dim if dim is not None else (states[0].shape[-1] if len(states) else 0)
@@ -147,12 +183,12 @@ def pad_tokens(states, max_tokens: int, dim: int | None = None) -> tuple[np.ndar
     mask = np.zeros((len(states), max_tokens), bool)
     for i, s in enumerate(states):
         n = min(len(s), max_tokens)
-        out[i, :n] = s[:n]
+        out[i, :n] = np.asarray(s[:n], np.float16)
         mask[i, :n] = True
     return out, mask
 
 
-class TokenCache:
+class TokenCache(_ShardCache):
     """A folder of per-token text state shards (word-level text conditioning).
 
     Each shard holds ``keys [K]``, ``lengths [K]`` and ``states [sum(lengths), D]`` float16:
@@ -162,46 +198,17 @@ class TokenCache:
     atomically, as :class:`EmbeddingCache`'s.
 
     States are stored in float16 (half the disk and memory: 12k texts of ~16 tokens are
-    ~150 MB); :meth:`encode` rounds freshly computed states through float16 too, so a text
-    gets the same values whether it was cached or not.
+    ~150 MB); :func:`pad_tokens`, which every consumer goes through, rounds fresh states the
+    same way.
     """
 
-    def __init__(self, path):
-        self.path = Path(path)
-        self.hits = 0
-        self.misses = 0
-        self._mem: dict[str, np.ndarray] = {}
-        self._loaded: set[str] = set()
-        self.refresh()
+    _PREFIX = "tok-"
+    _KIND = "token"
 
-    def refresh(self) -> None:
-        """Read shards written since the last refresh."""
-        if not self.path.is_dir():
-            return
-        for shard in sorted(self.path.glob("tok-*.npz")):
-            if shard.name in self._loaded:
-                continue
-            try:
-                with np.load(shard, allow_pickle=False) as z:
-                    keys, lengths, states = z["keys"], z["lengths"], z["states"]
-            except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as e:
-                warnings.warn(f"skipping unreadable token shard {shard}: {e}", stacklevel=2)
-                continue
-            offsets = np.concatenate([[0], np.cumsum(lengths)])
-            for i, k in enumerate(keys.tolist()):
-                self._mem[k] = states[offsets[i]:offsets[i + 1]]
-            self._loaded.add(shard.name)
-
-    def __len__(self) -> int:
-        return len(self._mem)
-
-    def get(self, keys) -> dict[str, np.ndarray]:
-        """The cached ``[n, D]`` float16 states among ``keys``; counts hits and misses."""
-        keys = list(keys)
-        found = {k: self._mem[k] for k in keys if k in self._mem}
-        self.hits += sum(k in found for k in keys)
-        self.misses += sum(k not in found for k in keys)
-        return found
+    def _entries(self, z):
+        keys, lengths, states = z["keys"], z["lengths"], z["states"]
+        offsets = np.concatenate([[0], np.cumsum(lengths)])
+        return ((k, states[offsets[i]:offsets[i + 1]]) for i, k in enumerate(keys.tolist()))
 
     def put(self, keys, states) -> Path | None:
         """Store ``states[i]`` (``[n_i, D]``) under ``keys[i]`` in one new shard."""
@@ -211,27 +218,15 @@ class TokenCache:
         if not keys:
             return None
         states = [np.asarray(s, np.float16) for s in states]
-        lengths = np.array([len(s) for s in states], np.int64)
-        name = "tok-" + hashlib.sha256("\n".join(keys).encode()).hexdigest()[:24] + ".npz"
-        shard = self.path / name
-        with atomic_open(shard, "wb") as f:
-            np.savez(f, keys=np.array(keys, dtype="<U64"), lengths=lengths,
-                     states=np.concatenate(states, axis=0))
-        for k, v in zip(keys, states):
-            self._mem[k] = v
-        self._loaded.add(name)
-        return shard
+        return self._write(keys, states, lengths=np.array([len(s) for s in states], np.int64),
+                           states=np.concatenate(states, axis=0))
 
     def states(self, encoder, texts) -> list[np.ndarray]:
         """Per text, its token states ``[n_i, D]`` float16 (cached ones reused, new ones
         computed with ``encoder.token_states`` once and stored)."""
         texts = list(texts)
         keys = [cache_key(encoder.name + ":tokens", encoder.checksum, t) for t in texts]
-        found = self.get(keys)
-        missing: dict[str, str] = {}
-        for k, t in zip(keys, texts):
-            if k not in found:
-                missing.setdefault(k, t)
+        missing = self._missing(keys, texts, self.get(keys))
         if missing:
             self.put(list(missing), encoder.token_states(list(missing.values())))
         return [self._mem[k] for k in keys]

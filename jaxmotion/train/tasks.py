@@ -72,29 +72,30 @@ class _DataTask:
         """Token states per text the batches need (0 = the pooled embedding only)."""
         return 0
 
+    @staticmethod
+    def _cache_dir(cfg, name: str, fallback: str) -> Path:
+        """``<data_dir>/.cache/<name>``, or ``<workdir>/<fallback>`` when the dataset is
+        read-only."""
+        cache_dir = Path(cfg.data_dir) / ".cache" / name
+        try:
+            cache_dir.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            cache_dir = Path(cfg.workdir) / fallback
+        return cache_dir
+
     def _text(self, cfg):
         if not hasattr(self, "_encoder"):
             from jaxmotion.text import EmbeddingCache, load_text_encoder
 
             self._encoder = load_text_encoder("minilm")
-            cache_dir = Path(cfg.data_dir) / ".cache" / "text"
-            try:
-                cache_dir.mkdir(parents=True, exist_ok=True)
-            except OSError:
-                cache_dir = Path(cfg.workdir) / "text_cache"
-            self._cache = EmbeddingCache(cache_dir)
+            self._cache = EmbeddingCache(self._cache_dir(cfg, "text", "text_cache"))
         return self._encoder, self._cache
 
     def _token_cache(self, cfg):
         if not hasattr(self, "_tokens"):
             from jaxmotion.text import TokenCache
 
-            cache_dir = Path(cfg.data_dir) / ".cache" / "text-tokens"
-            try:
-                cache_dir.mkdir(parents=True, exist_ok=True)
-            except OSError:
-                cache_dir = Path(cfg.workdir) / "text_token_cache"
-            self._tokens = TokenCache(cache_dir)
+            self._tokens = TokenCache(self._cache_dir(cfg, "text-tokens", "text_token_cache"))
         return self._tokens
 
     def _prepare(self, cfg, raw: dict) -> dict:

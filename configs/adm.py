@@ -10,6 +10,12 @@ token states as latents, so relation words ("closest", "farthest") and the ancho
 apart instead of being averaged into one sentence vector (0 = the paper's pooled text only).
 Token states are cached under ``<data_dir>/.cache/text-tokens`` (float16; ~140 MB for the
 synthetic set's 14.5k texts).
+
+Room view (``crop.centre=room crop.size=8``): the ADM reads the whole room (any room up to 8 m
+across) instead of the AMDM's 4 m crop around the motion, so the anchor of "the chair closest to
+the desk" is in view; the pipeline carries its map to the AMDM's crop by nearest neighbours.
+``init_from=DIR`` starts the ADM from another ADM run's weights (workdir or ``.safetensors``;
+same model config) instead of random ones, e.g. to fine-tune a crop-view ADM to the room view.
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ class ADMTrainConfig(TrainConfig):
     task: str = "adm"
     workdir: str = "runs/adm"
     backbone_workdir: str = "runs/segmentation"
+    init_from: str = ""
     steps: int = 6000
     batch_size: int = 16
     model: ADMConfig = dataclasses.field(default_factory=ADMConfig)

@@ -13,15 +13,22 @@ Steps:
 1. **Scene**: a path (any mesh or point cloud :func:`jaxmotion.scene.load_scene` reads, a
    ScanNet-style labelled ``.ply``, a jaxmotion ``.npz``), a :class:`~jaxmotion.scene.Scene`,
    or ``"demo"`` (the built-in room, :func:`demo_scene`).
-2. **Region**: the models see a ``crop.size`` square (4 m) of the room, as in training, and
+2. **Region**: the AMDM sees a ``crop.size`` square (4 m) of the room, as in training, and
    in training the target object was always inside it. With ``object_id`` the square is
-   centred on that object. Otherwise, when the room has an object table (synthetic rooms,
-   labelled scans) and the text names one of its categories, the ADM is run on a square
-   centred on each object of that category and the object its map lights up most is chosen
-   (affordance grounding). Without labels, the room is tiled with half-overlapping squares
-   and the tile with the strongest predicted pelvis-affordance peak is used.
-3. **ADM → AMDM**: affordance maps then motions for ``samples`` seeds, one jitted, vmapped
-   program (DDIM with ``steps`` steps per stage).
+   centred on that object. Otherwise the ADM's map chooses it:
+
+   - a **room-view ADM** (the shipped one; trained with ``crop.centre=room``) is run once on
+     its view of the whole room (rooms wider than its 8 m square are tiled) for every sample;
+     when the room has an object table (synthetic rooms, labelled scans) and the text names
+     one of its categories, the object of that category the maps light up most is chosen,
+     else the square is centred on the strongest pelvis affordance. The maps are carried to
+     the square's points by nearest neighbours (:func:`jaxmotion.geometry.carry_field`).
+   - a **crop-view ADM** (trained on the AMDM's squares) is run on a square centred on each
+     object of the named category, and the object its map lights up most is chosen
+     (affordance grounding); without labels, the room is tiled with half-overlapping squares
+     and the tile with the strongest predicted pelvis-affordance peak is used.
+3. **ADM → AMDM**: affordance maps then motions for ``samples`` seeds, jitted, vmapped
+   programs (DDIM with ``steps`` steps per stage).
 4. **Body**: SMPL-X parameters fitted to the joints (:func:`jaxmotion.body.fit_joints_to_body`).
 
 The checkpoints default to the ones shipped in the package (``jaxmotion/assets``, trained on the
@@ -309,7 +316,10 @@ class Generation:
         ``betas [K,10]`` (axis-angle, SMPL-X conventions), or empty without fitting.
       fit_error: ``[K]`` mean joint distance (m) between the fitted body and ``joints``.
       crop_xyz ``[N,3]`` (scene frame), crop_rgb ``[N,3]`` in [0, 1]: the points the models saw.
-      affordance: ``[K, N, 6]`` the ADM's maps (pelvis, feet, neck, wrists) in [0, 1].
+      affordance: ``[K, N, 6]`` the ADM's maps (pelvis, feet, neck, wrists) in [0, 1] on the
+        crop's points (carried from the room view for a room-view ADM).
+      view_xyz ``[M,3]`` (scene frame), view_affordance ``[K, M, 6]``: a room-view ADM's input
+        points and its maps on them (None for a crop-view ADM).
       rotation ``[3,3]``, shift ``[3]``: the crop frame, ``x_scene = x_crop @ rotation + shift``.
       object_id: as passed; target_id: the object the region was centred on (``object_id``, or
         the one chosen from the text; None when the region came from tiling the room).
@@ -337,6 +347,8 @@ class Generation:
     timings: dict
     guidance: tuple[float, float] = (1.0, 1.0)
     consistency: float = 0.0
+    view_xyz: np.ndarray | None = None
+    view_affordance: np.ndarray | None = None
 
     @property
     def num_samples(self) -> int:
@@ -380,7 +392,10 @@ class Generation:
                          seed=np.int64(self.seed), steps=np.int64(self.steps),
                          guidance=np.asarray(self.guidance, np.float32),
                          consistency=np.float32(self.consistency),
-                         scene_name=np.array(self.scene.name))
+                         scene_name=np.array(self.scene.name),
+                         **({} if self.view_xyz is None else {
+                             "view_xyz": self.view_xyz.astype(np.float32),
+                             "view_affordance": self.view_affordance.astype(np.float16)}))
             p = self.smplx
             i = int(bvh_sample)
             export.write_bvh(tmp / "motion.bvh", p["global_orient"][i], p["body_pose"][i],
@@ -402,14 +417,18 @@ class Generation:
         return written
 
     def _scene_heat(self, xyz: np.ndarray) -> np.ndarray:
-        """The first sample's pelvis affordance carried from the crop to ``xyz`` (nearest crop
-        point within 10 cm, else 0)."""
+        """The first sample's affordance (strongest channel) carried to ``xyz``: from the room
+        view when there is one (nearest view point within 30 cm), else from the crop (within
+        10 cm); 0 elsewhere."""
         from scipy.spatial import cKDTree
 
-        d, idx = cKDTree(self.crop_xyz).query(xyz, k=1, distance_upper_bound=0.1)
+        src, maps, reach = self.crop_xyz, self.affordance, 0.1
+        if self.view_xyz is not None:
+            src, maps, reach = self.view_xyz, self.view_affordance, 0.3
+        d, idx = cKDTree(src).query(xyz, k=1, distance_upper_bound=reach)
         heat = np.zeros(len(xyz), np.float32)
         ok = np.isfinite(d)
-        heat[ok] = self.affordance[0, idx[ok]].max(axis=-1)
+        heat[ok] = maps[0, idx[ok]].max(axis=-1)
         return heat
 
 
@@ -560,7 +579,9 @@ def generate(
     spec = CropSpec(**{**crop_cfg.__dict__, "rotate": False})
     t_frames, fps = int(mcfg["max_frames"]), 30.0
     lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
-    adm_tokens = int(_weights_config(adm_file).get("model", {}).get("text_tokens", 0))
+    adm_cfg = _weights_config(adm_file)
+    adm_tokens = int(adm_cfg.get("model", {}).get("text_tokens", 0))
+    room_view = adm_cfg.get("crop", {}).get("centre") == "room"
     emb = _embed(text, xla_cache / "text-embeddings", adm_tokens)
     key = jax.random.key(int(seed))
     k_tiles, k_main = jax.random.split(key)
@@ -573,9 +594,19 @@ def generate(
     versions = (jax.__version__, __version__)
     lap("load")
 
+    k = int(samples)
+    tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))  # noqa: E731
+    view_index = view_maps = None
+    if room_view:
+        view_index, view_maps = _room_view_maps(
+            room, adm_cfg, jax.tree.map(lambda a: a[0], emb), k_tiles, adm_sampler, k, seed,
+            aot_dir, _digest(versions, adm_sampler, Path(adm_file)), get_pipe)
+        lap("adm")
     if object_id is not None:
         centre = _object_centre(_object(room, object_id), lo, hi, spec.size)
         chosen = int(object_id)
+    elif room_view:
+        centre, chosen = _region_from_view(room, text, view_index, view_maps, spec, lo, hi)
     else:
         centre, chosen = _choose_region(get_pipe, room, text, emb, spec, k_tiles, adm_sampler, seed,
                                         lo, hi)
@@ -586,16 +617,24 @@ def generate(
     except ValueError as e:
         raise GenerateError(f"the scene has no points near the chosen region: {e}") from e
     colors = model_colors(room.rgb[pick])
-    k = int(samples)
-    tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))  # noqa: E731
-
-    def build_sampler():
-        pipe = get_pipe()
-        return lambda kd, p, c, e, m: pipe.sample(jax.random.wrap_key_data(kd), p, c, e, m,
-                                                  adm=adm_sampler, amdm=amdm_sampler)
 
     args = (np.asarray(jax.random.key_data(k_main)), tile(pts), tile(colors),
             jax.tree.map(lambda a: tile(a[0]), emb), np.ones((k, t_frames), bool))
+    if room_view:  # the AMDM on the view's maps, carried to the crop (in the crop frame)
+        from jaxmotion.sample import AffordancePipeline
+
+        view_in_crop = ((room.xyz[view_index] - shift) @ rot.T).astype(np.float32)
+        args = (*args, np.asarray(AffordancePipeline.carry(tile(pts), tile(view_in_crop),
+                                                           view_maps)))
+
+    def build_sampler():
+        pipe = get_pipe()
+        if room_view:
+            return lambda kd, p, c, e, m, a: pipe.sample(jax.random.wrap_key_data(kd), p, c, e,
+                                                         m, amdm=amdm_sampler, affordance=a)
+        return lambda kd, p, c, e, m: pipe.sample(jax.random.wrap_key_data(kd), p, c, e, m,
+                                                  adm=adm_sampler, amdm=amdm_sampler)
+
     res = _aot_call(aot_dir, "sample", _digest(versions, adm_sampler, amdm_sampler, Path(adm_file),
                                               Path(amdm_file)),
                     build_sampler, args)
@@ -628,6 +667,8 @@ def generate(
         object_id=None if object_id is None else int(object_id), target_id=chosen,
         seed=int(seed), steps=int(steps), guidance=(adm_w, amdm_w), consistency=consistency,
         timings=times,
+        view_xyz=None if view_index is None else room.xyz[view_index].astype(np.float32),
+        view_affordance=None if view_maps is None else np.asarray(view_maps, np.float32),
     )
 
 
@@ -757,6 +798,60 @@ def _choose_region(get_pipe, room, text, emb, spec, key, sampler, seed, lo, hi):
     maps = _adm_maps(get_pipe, crops, emb, key, sampler)
     scores = [float(np.sort(a[:, 0])[-32:].mean()) for a in maps]
     return np.asarray(tiles[crops[int(np.argmax(scores))][0]]), None
+
+
+def _room_view_maps(room, adm_cfg, emb, key, sampler, k: int, seed: int, aot_dir, fingerprint,
+                    get_pipe):
+    """A room-view ADM's maps for ``k`` samples: ``(view_index [M] into the scene's points,
+    maps [K,M,6])``.
+
+    The view is the ADM's training square (``crop.size``, no rotation) centred on the room; a
+    room wider than it is tiled with half-overlapping squares (:func:`_centres`) and the
+    tiles' points are concatenated."""
+    import jax
+
+    from jaxmotion.config import config_from_dict
+    from jaxmotion.data.config import CropConfig
+    from jaxmotion.data.crop import CropSpec
+
+    view_spec = CropSpec(**{**config_from_dict(CropConfig, adm_cfg["crop"]).__dict__,
+                            "rotate": False})
+    lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
+    views = _crops(room, _centres(lo, hi, view_spec.size), view_spec, seed, 4)
+    v = len(views)
+    pts = np.stack([c[2] for c in views])
+    col = np.stack([c[3] for c in views])
+    # every sample sees every tile: a batch of K x V
+    rep = lambda x: np.ascontiguousarray(np.repeat(x[None], k, 0).reshape(k * v, *x.shape[1:]))  # noqa: E731
+    args = (np.asarray(jax.random.key_data(key)), rep(pts), rep(col),
+            jax.tree.map(lambda a: np.ascontiguousarray(np.broadcast_to(a, (k * v, *a.shape))),
+                         emb))
+
+    def build():
+        pipe = get_pipe()
+        return lambda kd, p, c, e: pipe.sample_affordance(jax.random.wrap_key_data(kd), p, c, e,
+                                                          sampler)
+
+    maps = np.asarray(jax.device_get(_aot_call(aot_dir, "adm_view", fingerprint, build, args)))
+    return np.concatenate([c[1] for c in views]), maps.reshape(k, v * pts.shape[1], -1)
+
+
+def _region_from_view(room, text, view_index, view_maps, spec, lo, hi):
+    """The AMDM's square from a room-view ADM's maps (module docstring, step 2): the named
+    object the mean map lights up most (mean over its view points of the strongest channel),
+    else the strongest pelvis affordance. Returns ``(centre, chosen object id or None)``."""
+    mean = view_maps.mean(axis=0)  # [M, 6], over samples
+    candidates = mentioned_objects(room, text)
+    if len(candidates) == 1:
+        return _object_centre(candidates[0], lo, hi, spec.size), candidates[0]["id"]
+    if candidates:
+        inst = room.instance[view_index]
+        scores = [float(mean[inst == o["id"]].max(axis=-1).mean()) if (inst == o["id"]).any()
+                  else -1.0 for o in candidates]
+        best = candidates[int(np.argmax(scores))]
+        return _object_centre(best, lo, hi, spec.size), best["id"]
+    peak = room.xyz[view_index[int(np.argmax(mean[:, 0]))]]
+    return _clamp_centre(peak[:2], lo, hi, spec.size), None
 
 
 def summary(res: Generation) -> str:

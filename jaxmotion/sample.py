@@ -16,6 +16,12 @@ words (``ADMConfig.text_tokens > 0``), the mapping ``{"pooled" [B, D], "tokens" 
 "mask" [B, L]}``: :meth:`AffordancePipeline.embed_text` builds the right one, and
 :func:`take_text` indexes either.
 
+An ADM trained on the room view (its ``crop.centre`` is ``room``: the whole room, not the
+AMDM's crop around the motion) takes its own points: ``sample(..., view={"points", "colors",
+"in_crop"})`` runs the ADM on the view and carries its map to the crop's points (``in_crop``:
+the view's points in the crop frame) with :func:`jaxmotion.geometry.carry_field`;
+:func:`load_cases` builds the views of dataset cases.
+
 ``jaxmotion sample`` runs it over a dataset split and writes an ``.npz``.
 """
 
@@ -31,7 +37,8 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-__all__ = ["AffordancePipeline", "SamplerSpec", "load_cases", "sample_split", "take_text"]
+__all__ = ["AffordancePipeline", "SamplerSpec", "case_inputs", "load_cases", "sample_split",
+           "take_text"]
 
 
 def take_text(text, index):
@@ -84,6 +91,7 @@ class AffordancePipeline:
         self.m_mean, self.m_std, self.am_mean, self.am_std = amdm_stats
         self.sigma = 0.8
         self.amdm_config: dict = {}
+        self.adm_config: dict = {}
 
     @classmethod
     def from_workdirs(cls, adm_workdir, amdm_workdir) -> "AffordancePipeline":
@@ -99,7 +107,7 @@ class AffordancePipeline:
         from jaxmotion.config import config_from_dict
         from jaxmotion.diffusion import make_schedule
         from jaxmotion.models import AMDM, AMDMConfig
-        from jaxmotion.train.export import abstract_module, apply_weights, load_weights
+        from jaxmotion.train.export import abstract_module, apply_weights, load_weights, read_config
         from jaxmotion.train.tasks import load_adm
 
         adm_net, adm_sched, adm_stats = load_adm(adm_file)
@@ -123,7 +131,19 @@ class AffordancePipeline:
         pipe = cls(adm_net, adm_sched, adm_stats, amdm, sched, amdm_stats)
         pipe.sigma = float(mcfg["affordance"]["sigma"])
         pipe.amdm_config = mcfg  # the AMDM run's config.json (crop, max_frames, ...)
+        pipe.adm_config = read_config(adm_file)
         return pipe
+
+    @property
+    def room_view(self) -> bool:
+        """Whether the ADM reads the room view (``crop.centre == "room"``) rather than the
+        AMDM's crop: then :meth:`sample` needs ``view``."""
+        return self.adm_config.get("crop", {}).get("centre", "motion") == "room"
+
+    @property
+    def adm_crop(self) -> dict:
+        """The ADM's training crop settings (its config's ``crop`` section)."""
+        return dict(self.adm_config.get("crop", {}))
 
     @property
     def text_tokens(self) -> int:
@@ -233,17 +253,42 @@ class AffordancePipeline:
         return self._jitted[1](spec, keys, points, scene_feat, text_emb, mask)
 
     def sample(self, key, points, colors, text_emb, mask, *, adm=SamplerSpec(steps=50),
-               amdm=SamplerSpec(steps=50), affordance=None) -> dict:
+               amdm=SamplerSpec(steps=50), affordance=None, view=None) -> dict:
         """Both stages: affordance from scene + text, then motion from affordance + text.
 
         ``affordance``: maps ``[B,N,6]`` in [0, 1] to use instead of sampling the ADM (e.g. the
-        ground truth's); the motion then gets the same noise as with the ADM's maps."""
+        ground truth's); the motion then gets the same noise as with the ADM's maps.
+        ``view``: for a room-view ADM (:attr:`room_view`), ``{"points" [B,M,3], "colors"
+        [B,M,3], "in_crop" [B,M,3]}``: the ADM's input in its own frame, and the same points
+        in the crop frame; the ADM's map on them (returned as ``view_affordance``) is carried
+        to the crop's points."""
         ka, km = jax.random.split(key)
         if self.amdm.cfg.scene_input == "rgb":
             return {"joints": self.sample_motion(km, points, colors, text_emb, mask, amdm)}
-        aff = (self.sample_affordance(ka, points, colors, text_emb, adm) if affordance is None
-               else affordance)
-        return {"affordance": aff, "joints": self.sample_motion(km, points, aff, text_emb, mask, amdm)}
+        out = {}
+        if affordance is not None:
+            aff = affordance
+        elif view is not None:
+            out["view_affordance"] = self.sample_affordance(ka, view["points"], view["colors"],
+                                                            text_emb, adm)
+            aff = self.carry(points, view["in_crop"], out["view_affordance"])
+        else:
+            if self.room_view:
+                raise ValueError("this ADM was trained on the room view (crop.centre=room): pass "
+                                 "view={'points', 'colors', 'in_crop'} (load_cases and "
+                                 "case_inputs build it), or maps as affordance=")
+            aff = self.sample_affordance(ka, points, colors, text_emb, adm)
+        return {**out, "affordance": aff,
+                "joints": self.sample_motion(km, points, aff, text_emb, mask, amdm)}
+
+    @staticmethod
+    @jax.jit
+    def carry(points, view_points, view_maps):
+        """Maps on the view ``[B,M,6]`` at ``view_points [B,M,3]`` → maps at ``points [B,N,3]``
+        (all in one frame; inverse-distance weights over 4 nearest neighbours)."""
+        from jaxmotion.geometry import carry_field
+
+        return jax.vmap(carry_field)(points, view_points, view_maps)
 
 
 def _tile(tree, b):
@@ -251,7 +296,8 @@ def _tile(tree, b):
 
 
 def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | None = None,
-               seed: int = 0, num_points: int | None = None) -> tuple[list[dict], Any]:
+               seed: int = 0, num_points: int | None = None,
+               adm_config: dict | None = None) -> tuple[list[dict], Any]:
     """The first ``num_cases`` samples of a split as model inputs: crops as in training (the
     AMDM run's ``crop`` config, no rotation), padded to its ``max_frames``. Each case: ``text``,
     ``action``, ``points``, ``colors``, ``mask``, ``gt`` joints, ``target_mask`` (the target
@@ -270,6 +316,10 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
     crop_cfg = config_from_dict(CropConfig, model_config["crop"])
     spec = CropSpec(**{**crop_cfg.__dict__, "rotate": False,
                        **({"num_points": num_points} if num_points else {})})
+    view_spec = None
+    if adm_config is not None and adm_config.get("crop", {}).get("centre") == "room":
+        view_cfg = config_from_dict(CropConfig, adm_config["crop"])
+        view_spec = CropSpec(**{**view_cfg.__dict__, "rotate": False})
     max_frames = int(model_config["max_frames"])
     files = sorted((Path(data_dir) / "samples" / split).glob("*.npz"))[:num_cases]
     if not files:
@@ -284,21 +334,43 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
             objects = json.loads(str(sc["objects"])) if "objects" in sc.files else []
         c = crop_sample(np.random.default_rng([seed, i]), xyz, rgb, inst, s["joints"], s["mask"],
                         s["target_id"], spec)
-        class_mask, on_target = c.target_mask, inst == s["target_id"]
+        class_of = lambda crop: crop.target_mask  # noqa: E731  (no labels: the instance)
+        on_target = inst == s["target_id"]
         if sem is not None and on_target.any():
             labels, counts = np.unique(sem[on_target], return_counts=True)
             target_class = labels[np.argmax(counts)]
-            class_mask = sem[c.indices] == target_class
+            class_of = lambda crop: sem[crop.indices] == target_class  # noqa: E731
+        class_mask = class_of(c)
         t = min(len(s["mask"]), max_frames)
         mask = np.zeros(max_frames, bool)
         mask[:t] = s["mask"][:t]
         gt = np.zeros((max_frames, 22, 3), np.float32)
         gt[:t] = c.joints[:t]
+        view = None
+        if view_spec is not None:
+            v = crop_sample(np.random.default_rng([seed, i, 1]), xyz, rgb, inst, s["joints"],
+                            s["mask"], s["target_id"], view_spec)
+            in_crop = ((v.to_world(v.points) - c.shift) @ c.rotation.T).astype(np.float32)
+            view = dict(points=v.points, colors=v.colors, in_crop=in_crop,
+                        instance=inst[v.indices], target_mask=v.target_mask,
+                        target_class_mask=class_of(v))
         cases.append(dict(text=str(s["text"]), action=str(s["action"]), points=c.points,
                           colors=c.colors, mask=mask, gt=gt, target_mask=c.target_mask,
                           target_class_mask=class_mask, instance=inst[c.indices],
-                          objects=objects, rotation=c.rotation, shift=c.shift, file=f.name))
+                          objects=objects, rotation=c.rotation, shift=c.shift, file=f.name,
+                          view=view))
     return cases, spec
+
+
+def case_inputs(cases: list[dict], idx) -> dict:
+    """The pipeline's inputs for cases ``idx`` (as :func:`load_cases` makes them), stacked:
+    ``points``, ``colors``, ``mask`` and ``view`` (stacked, or None without views)."""
+    stack = lambda get: np.stack([get(cases[i]) for i in idx])  # noqa: E731
+    view = None
+    if cases[idx[0]].get("view") is not None:
+        view = {k: stack(lambda c, k=k: c["view"][k]) for k in ("points", "colors", "in_crop")}
+    return {"points": stack(lambda c: c["points"]), "colors": stack(lambda c: c["colors"]),
+            "mask": stack(lambda c: c["mask"]), "view": view}
 
 
 def sample_split(data_dir, split, adm_workdir, amdm_workdir, out, *, num_cases: int = 8,
@@ -317,7 +389,7 @@ def sample_split(data_dir, split, adm_workdir, amdm_workdir, out, *, num_cases: 
 
     pipe = AffordancePipeline.from_workdirs(adm_workdir, amdm_workdir)
     cases, spec = load_cases(data_dir, split, pipe.amdm_config, num_cases=num_cases, seed=seed,
-                             num_points=num_points)
+                             num_points=num_points, adm_config=pipe.adm_config)
     max_frames = len(cases[0]["mask"])
     emb = pipe.embed_text([c["text"] for c in cases], load_text_encoder("minilm"))
     rows = [(ci, k) for ci in range(len(cases)) for k in range(samples_per_case)]
@@ -328,10 +400,9 @@ def sample_split(data_dir, split, adm_workdir, amdm_workdir, out, *, num_cases: 
         chunk = rows[start:start + batch_size]
         pad = batch_size - len(chunk)
         idx = [ci for ci, _ in chunk] + [chunk[-1][0]] * pad  # static batch: pad the last one
-        res = pipe.sample(jax.random.fold_in(key, start),
-                          np.stack([cases[i]["points"] for i in idx]),
-                          np.stack([cases[i]["colors"] for i in idx]), take_text(emb, idx),
-                          np.stack([cases[i]["mask"] for i in idx]), adm=adm, amdm=amdm)
+        x = case_inputs(cases, idx)
+        res = pipe.sample(jax.random.fold_in(key, start), x["points"], x["colors"],
+                          take_text(emb, idx), x["mask"], adm=adm, amdm=amdm, view=x["view"])
         res = jax.device_get(res)
         for j, (ci, k) in enumerate(chunk):
             joints[ci, k] = res["joints"][j]

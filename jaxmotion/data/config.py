@@ -28,6 +28,10 @@ class CropConfig:
       rotation_range: the rotation angle is uniform in [-rotation_range, rotation_range], radians.
       margin: the pelvis trajectory's xy extent is padded by this much before the crop centre
         is drawn so that it fits, metres.
+      centre: ``motion``: the centre is drawn so that the padded trajectory fits (the papers'
+        crop); ``room``: the centre of the room's xy bounding box, moved only as far as needed
+        for the padded trajectory to fit, so a square at least as large as the room shows all
+        of it and says nothing about where the motion is (the ADM's "room view").
     """
 
     size: float = 4.0
@@ -36,8 +40,11 @@ class CropConfig:
     rotate: bool = True
     rotation_range: float = math.pi
     margin: float = 0.3
+    centre: Literal["motion", "room"] = "motion"
 
     def __post_init__(self):
+        if self.centre not in ("motion", "room"):
+            raise ValueError(f"crop.centre must be 'motion' or 'room', got {self.centre!r}")
         if self.size <= 0 or self.num_points < 1:
             raise ValueError(f"crop size ({self.size}) and num_points ({self.num_points}) "
                              "must be positive")

@@ -5,7 +5,10 @@ Per sample (the afford-motion recipe, see REFERENCE_FACTS):
 1. take the xy extent of the pelvis trajectory over valid frames, padded by
    ``margin`` metres;
 2. sample the crop centre ``c`` uniformly such that the padded extent fits in
-   the ``size × size`` square (centred on the extent when it cannot fit);
+   the ``size × size`` square (centred on the extent when it cannot fit); with
+   ``centre="room"`` instead take the centre of the room's xy bounding box,
+   moved only as far as the padded extent needs to fit (the ADM's room view:
+   no hint of where the motion is when the room fits in the square);
 3. keep the scene points inside the square and draw ``num_points`` of them
    (without replacement when there are enough, else all of them plus random
    duplicates);
@@ -39,6 +42,7 @@ class CropSpec:
     rotate: bool = True
     rotation_range: float = float(np.pi)
     margin: float = 0.3
+    centre: str = "motion"
 
 
 @dataclass(frozen=True)
@@ -101,7 +105,15 @@ def crop_sample(
     half = 0.5 * spec.size
     c_lo, c_hi = hi - half, lo + half  # centres for which [lo, hi] fits in the square
     fits = c_lo <= c_hi
-    centre = np.where(fits, rng.uniform(np.minimum(c_lo, c_hi), np.maximum(c_lo, c_hi)), 0.5 * (lo + hi))
+    if spec.centre == "room":
+        room_c = 0.5 * (xyz[:, :2].min(0) + xyz[:, :2].max(0))
+        centre = np.where(fits, np.clip(room_c, np.minimum(c_lo, c_hi), np.maximum(c_lo, c_hi)),
+                          0.5 * (lo + hi))
+    elif spec.centre == "motion":
+        centre = np.where(fits, rng.uniform(np.minimum(c_lo, c_hi), np.maximum(c_lo, c_hi)),
+                          0.5 * (lo + hi))
+    else:
+        raise ValueError(f"CropSpec.centre must be 'motion' or 'room', got {spec.centre!r}")
 
     try:
         pick, pts, shift, rot = crop_at(rng, xyz, centre, spec)

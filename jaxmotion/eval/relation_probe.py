@@ -11,7 +11,9 @@ one; an ADM that ignores it hits the target equally often with both.
 
 The crop is a 4 m square around the motion, and the anchor often lies outside it: then no
 model that sees only the crop can resolve the relation. The rates are therefore also given
-for the cases whose crop holds an object of the anchor's class (``anchor_visible``).
+for the cases whose crop holds an object of the anchor's class (``anchor_visible``). A
+room-view ADM (``crop.centre=room``) is probed on its view of the whole room instead, where
+the case selection and ``anchor_visible`` use the view too.
 
     python -m jaxmotion.eval.relation_probe --data data/synth --adm A --amdm M
 
@@ -68,13 +70,15 @@ def relation_probe(data_dir, adm, amdm, *, splits=("val", "test"), num_cases: in
     pipe = AffordancePipeline.from_workdirs(adm, amdm)
     picked = []
     for split in splits:
-        cases, _ = load_cases(data_dir, split, pipe.amdm_config, num_cases=num_cases, seed=seed)
+        cases, _ = load_cases(data_dir, split, pipe.amdm_config, num_cases=num_cases, seed=seed,
+                              adm_config=pipe.adm_config)
         for c in cases:
-            if c["target_class_mask"].sum() <= c["target_mask"].sum():
-                continue  # the only object of its class in the crop: nothing to choose
+            seen = _adm_input(c)
+            if seen["target_class_mask"].sum() <= seen["target_mask"].sum():
+                continue  # the only object of its class the ADM sees: nothing to choose
             pair = canonical_pair(c["text"])
             if pair is not None:
-                picked.append((c, c["text"], *pair))
+                picked.append((seen, c["text"], *pair))
     visible = np.array([anchor_visible(p[0]) for p in picked], bool)
     out = {"cases": len(picked), "splits": list(splits), "num_cases": num_cases, "steps": steps,
            "guidance": guidance, "seed": seed}
@@ -101,6 +105,14 @@ def relation_probe(data_dir, adm, amdm, *, splits=("val", "test"), num_cases: in
     return res
 
 
+def _adm_input(case) -> dict:
+    """What the ADM reads for a case: its room view when it has one, else the crop (with the
+    text and the room's object table either way)."""
+    if case.get("view") is None:
+        return case
+    return {**case["view"], "text": case["text"], "objects": case["objects"]}
+
+
 def _rates(hits) -> dict:
     return {"hit_original": float(hits[0].mean()), "hit_true": float(hits[1].mean()),
             "hit_opposite": float(hits[2].mean()), "hit_both": float((hits[1] * hits[2]).mean())}
@@ -108,7 +120,7 @@ def _rates(hits) -> dict:
 
 def anchor_visible(case, min_points: int = 5) -> bool:
     """Whether an object of the anchor's class has at least ``min_points`` points in the case's
-    crop: only then can any model that sees the crop resolve "closest / farthest from it"."""
+    crop (or the ADM's view): only then can any model that sees the crop resolve "closest / farthest from it"."""
     from jaxmotion.scene.instructions import parse_instruction
 
     _, ref = parse_instruction(case["text"])

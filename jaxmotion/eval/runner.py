@@ -241,7 +241,7 @@ def evaluate(
     import jax
     from tqdm.auto import tqdm
 
-    from jaxmotion.sample import AffordancePipeline, SamplerSpec, load_cases, take_text
+    from jaxmotion.sample import AffordancePipeline, SamplerSpec, case_inputs, load_cases, take_text
     from jaxmotion.text import load_text_encoder
 
     if samples < 1 or replications < 1 or num_cases < 1:
@@ -264,7 +264,8 @@ def evaluate(
     for spec in models:
         t_model = time.perf_counter()
         pipe = AffordancePipeline.from_workdirs(spec.adm, spec.amdm)
-        cases, _ = load_cases(data_dir, split, pipe.amdm_config, num_cases=num_cases, seed=seed)
+        cases, _ = load_cases(data_dir, split, pipe.amdm_config, num_cases=num_cases, seed=seed,
+                              adm_config=pipe.adm_config)
         emb = pipe.embed_text([c["text"] for c in cases], encoder)
         adm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.adm_guidance)
         amdm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.amdm_guidance,
@@ -289,11 +290,11 @@ def evaluate(
             for start in range(0, len(rows), batch_size):
                 chunk = rows[start:start + batch_size]
                 idx = [ci for ci, _ in chunk] + [chunk[-1][0]] * (batch_size - len(chunk))
+                x = case_inputs(cases, idx)
                 res = jax.device_get(pipe.sample(
-                    jax.random.fold_in(key, start), np.stack([cases[i]["points"] for i in idx]),
-                    np.stack([cases[i]["colors"] for i in idx]), take_text(emb, idx),
-                    np.stack([cases[i]["mask"] for i in idx]), adm=adm_sampler, amdm=amdm_sampler,
-                    affordance=gt_maps[idx] if oracle else None))
+                    jax.random.fold_in(key, start), x["points"], x["colors"], take_text(emb, idx),
+                    x["mask"], adm=adm_sampler, amdm=amdm_sampler,
+                    affordance=gt_maps[idx] if oracle else None, view=x["view"]))
                 for j, (ci, k) in enumerate(chunk):
                     joints[ci, k] = res["joints"][j]
                     if two_stage:

@@ -14,6 +14,7 @@ from jaxmotion.geometry.affordance import (
 )
 from jaxmotion.geometry.distance import (
     box_signed_distance,
+    carry_field,
     nearest_points,
     occupancy_from_sdf,
     points_in_boxes,

@@ -24,6 +24,7 @@ import jax.numpy as jnp
 
 __all__ = [
     "box_signed_distance",
+    "carry_field",
     "nearest_points",
     "occupancy_from_sdf",
     "points_in_boxes",
@@ -86,6 +87,52 @@ def nearest_points(queries, points, *, query_chunk: int = 256, point_chunk: int 
     _check_cloud("queries", queries)
     _check_cloud("points", points)
     return _nearest(queries, points, query_chunk=query_chunk, point_chunk=point_chunk)
+
+
+@partial(jax.jit, static_argnames=("k", "query_chunk"))
+def _carry(queries, points, values, k, eps, query_chunk):
+    m = queries.shape[0]
+    qc = max(1, min(query_chunk, m))
+    q = jnp.pad(queries, ((0, -m % qc), (0, 0))).reshape(-1, qc, 3)
+
+    def per_chunk(qb):
+        d2 = jnp.sum((qb[:, None, :] - points[None, :, :]) ** 2, axis=-1)  # [qc, N]
+        neg, idx = jax.lax.top_k(-d2, k)
+        w = 1.0 / (jnp.sqrt(jnp.maximum(-neg, 0.0)) + eps)  # [qc, k]
+        w = w / jnp.sum(w, axis=1, keepdims=True)
+        return jnp.einsum("qk,qkc->qc", w, values[idx])
+
+    out = jax.lax.map(per_chunk, q)
+    return out.reshape(-1, values.shape[-1])[:m]
+
+
+def carry_field(queries, points, values, *, k: int = 4, eps: float = 1e-3,
+                query_chunk: int = 512):
+    """Carry a per-point field from one cloud to another: at each query, the mean of the
+    values at its ``k`` nearest points weighted by ``1 / (distance + eps)``.
+
+    Used to move an affordance map from the ADM's view of the room to the AMDM's crop (both
+    sampled from the same room, so most queries sit on or next to a source point, whose value
+    then dominates).
+
+    Args:
+      queries: ``[M, 3]``; points: ``[N, 3]`` (N >= 1); values: ``[N, C]``; all in one frame.
+      k: neighbours (clipped to N); eps: metres added to each distance (no division by zero).
+    Returns:
+      ``[M, C]`` float32.
+    """
+    queries = jnp.asarray(queries, jnp.float32)
+    points = jnp.asarray(points, jnp.float32)
+    values = jnp.asarray(values, jnp.float32)
+    _check_cloud("queries", queries)
+    _check_cloud("points", points)
+    if values.ndim != 2 or values.shape[0] != points.shape[0]:
+        raise ValueError(f"values must be [N, C] with N = {points.shape[0]} (one row per point), "
+                         f"got shape {values.shape}")
+    if k < 1 or eps <= 0:
+        raise ValueError(f"need k >= 1 and eps > 0, got k={k}, eps={eps}")
+    return _carry(queries, points, values, k=min(int(k), points.shape[0]), eps=float(eps),
+                  query_chunk=int(query_chunk))
 
 
 def signed_distance(queries, points, normals, **chunks):

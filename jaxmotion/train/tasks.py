@@ -208,7 +208,10 @@ class ADMTask(_DataTask):
         st = _stats(cfg)
         self.mean = jnp.asarray(st["affordance_mean"])
         self.std = jnp.asarray(st["affordance_std"])
-        return ADMNet(backbone, make_adm(cfg.model, rngs=rngs))
+        adm = make_adm(cfg.model, rngs=rngs)
+        if getattr(cfg, "init_from", ""):
+            _init_adm(adm, cfg)
+        return ADMNet(backbone, adm)
 
     def export_tensors(self) -> dict:
         # The frozen backbone travels inside ADM's weights file: one self-contained file.
@@ -234,6 +237,25 @@ class ADMTask(_DataTask):
         loss = diffusion_loss(key, denoise, self.schedule, x0, {"text": _text_condition(batch)},
                               cond_drop_prob=self.cond_drop if train else 0.0)
         return loss, {}
+
+
+def _init_adm(adm, cfg) -> None:
+    """Start ``adm`` from the weights of another ADM run (``cfg.init_from``)."""
+    from jaxmotion.train.export import apply_weights, load_weights, weights_path
+
+    path = weights_path(cfg.init_from)
+    tensors, saved = load_weights(path)
+    if saved.get("task") != "adm":
+        raise ValueError(f"init_from={cfg.init_from}: {path} is a {saved.get('task')!r} "
+                         "checkpoint, not an ADM one")
+    mine = config_to_dict(cfg.model)
+    theirs = saved["model"]
+    diff = [f"{k} ({theirs.get(k)!r} vs {mine[k]!r})" for k in sorted(mine)
+            if theirs.get(k) != mine[k]]
+    if diff:
+        raise ValueError(f"init_from={cfg.init_from}: its model config differs in "
+                         f"{', '.join(diff)}; pass the same model.* settings")
+    apply_weights(adm, tensors, prefix="adm/", source=str(path))
 
 
 # --------------------------------------------------------------------------- AMDM
@@ -265,6 +287,14 @@ class AMDMTask(_DataTask):
         self.adm_steps = int(cfg.adm_sampler_steps)
         adm_net = None
         if self.predicted_fraction > 0 and cfg.model.scene_input == "affordance":
+            from jaxmotion.train.export import read_config
+
+            if cfg.adm_workdir and read_config(cfg.adm_workdir).get("crop", {}).get(
+                    "centre") == "room":
+                raise ValueError(
+                    f"adm_workdir={cfg.adm_workdir} is a room-view ADM (crop.centre=room); the "
+                    "AMDM's predicted maps are sampled on its own crops, so they need a "
+                    "crop-view ADM: point adm_workdir to one, or set predicted_fraction=0")
             adm_net, self.adm_schedule, _ = load_adm(cfg.adm_workdir)
             self.adm_text_tokens = int(adm_net.adm.cfg.text_tokens)
         return AMDMNet(AMDM(cfg.model, rngs=rngs), adm_net)

@@ -144,8 +144,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
           file=sys.stderr, flush=True)
     res = generate(args.scene, args.text, object_id=args.object, samples=args.samples,
                    seed=args.seed, steps=args.steps, guidance=args.guidance,
-                   consistency=args.consistency, checkpoints=ckpt,
-                   num_points=args.points, progress=True)
+                   consistency=args.consistency, grounding=args.grounding,
+                   checkpoints=ckpt, num_points=args.points, progress=True)
     t1 = time.perf_counter()
     files = res.save(args.out, video=None if args.video == "none" else args.video)
     res.timings["write"] = time.perf_counter() - t1
@@ -278,6 +278,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="strength in [0, 1] of affordance-consistency guidance: the motion is "
                    "steered to match the predicted affordance map (default: the tuned value; "
                    "0 = off)")
+    p.add_argument("--grounding", choices=("auto", "adm"), default="auto",
+                   help="auto (default): a relation in the text ('the chair closest to the "
+                   "door') narrows the named objects by the room's geometry before the ADM "
+                   "chooses (needs an object table: synthetic rooms, labelled scans); adm: the "
+                   "ADM's map alone")
     p.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
     p.add_argument("--checkpoints", nargs="+", default=None, metavar="PATH",
                    help="a folder with adm.safetensors and amdm.safetensors, or the ADM and "

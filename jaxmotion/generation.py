@@ -15,18 +15,24 @@ Steps:
    or ``"demo"`` (the built-in room, :func:`demo_scene`).
 2. **Region**: the AMDM sees a ``crop.size`` square (4 m) of the room, as in training, and
    in training the target object was always inside it. With ``object_id`` the square is
-   centred on that object. Otherwise the ADM's map chooses it:
+   centred on that object. Otherwise, when the room has an object table (synthetic rooms,
+   labelled scans), the candidates are the objects of the first category the text names;
+   with ``grounding="auto"`` (the default) a referring expression in the text ("the chair
+   closest to the door", "the lamp on the nightstand", Sr3D's relations, parsed by
+   :func:`jaxmotion.scene.instructions.parse_instruction`) narrows them by the scene graph's
+   geometry (:class:`jaxmotion.scene.graph.SceneGraph`). The ADM's map chooses among what
+   is left (``grounding="adm"``: always among all the candidates; the shipped ADMs pick
+   among same-class objects no better than chance, see ``docs/results.md``):
 
    - a **room-view ADM** (the shipped one; trained with ``crop.centre=room``) is run once on
      its view of the whole room (rooms wider than its 8 m square are tiled) for every sample;
-     when the room has an object table (synthetic rooms, labelled scans) and the text names
-     one of its categories, the object of that category the maps light up most is chosen,
-     else the square is centred on the strongest pelvis affordance. The maps are carried to
+     the candidate the maps light up most is chosen, or without candidates the square is
+     centred on the strongest pelvis affordance. The maps are carried to
      the square's points by nearest neighbours (:func:`jaxmotion.geometry.carry_field`).
-   - a **crop-view ADM** (trained on the AMDM's squares) is run on a square centred on each
-     object of the named category, and the object its map lights up most is chosen
-     (affordance grounding); without labels, the room is tiled with half-overlapping squares
-     and the tile with the strongest predicted pelvis-affordance peak is used.
+   - a **crop-view ADM** (the shipped one; trained on the AMDM's squares) is run on a square
+     centred on each candidate, and the one its map lights up most is chosen (affordance
+     grounding); without candidates, the room is tiled with half-overlapping squares and the
+     tile with the strongest predicted pelvis-affordance peak is used.
 3. **ADM → AMDM**: affordance maps then motions for ``samples`` seeds, jitted, vmapped
    programs (DDIM with ``steps`` steps per stage).
 4. **Body**: SMPL-X parameters fitted to the joints (:func:`jaxmotion.body.fit_joints_to_body`).
@@ -53,6 +59,7 @@ from jaxmotion._version import __version__
 
 __all__ = [
     "DEFAULT_CONSISTENCY",
+    "candidate_objects",
     "DEFAULT_TEXT",
     "GenerateError",
     "Generation",
@@ -323,6 +330,9 @@ class Generation:
       rotation ``[3,3]``, shift ``[3]``: the crop frame, ``x_scene = x_crop @ rotation + shift``.
       object_id: as passed; target_id: the object the region was centred on (``object_id``, or
         the one chosen from the text; None when the region came from tiling the room).
+      grounding: how the region was chosen: ``object_id``, ``scene graph`` (the text's
+        relation singled the object out), ``class`` (the only object of the named class),
+        ``adm`` (the ADM's map chose among candidates) or ``adm peak`` (no candidates).
       seed, steps: as passed; guidance: the ``(ADM, AMDM)`` guidance scales used;
       consistency: the affordance-consistency strength used (0 = off).
       timings: seconds per stage.
@@ -349,6 +359,7 @@ class Generation:
     consistency: float = 0.0
     view_xyz: np.ndarray | None = None
     view_affordance: np.ndarray | None = None
+    grounding: str = ""
 
     @property
     def num_samples(self) -> int:
@@ -393,6 +404,7 @@ class Generation:
                          guidance=np.asarray(self.guidance, np.float32),
                          consistency=np.float32(self.consistency),
                          scene_name=np.array(self.scene.name),
+                         grounding=np.array(self.grounding),
                          **({} if self.view_xyz is None else {
                              "view_xyz": self.view_xyz.astype(np.float32),
                              "view_affordance": self.view_affordance.astype(np.float16)}))
@@ -510,6 +522,7 @@ def generate(
     steps: int = 20,
     guidance: float | tuple[float, float] | None = None,
     consistency: float | None = None,
+    grounding: str = "auto",
     checkpoints=None,
     num_points: int | None = None,
     fit: bool = True,
@@ -530,6 +543,9 @@ def generate(
       consistency: strength in [0, 1] of affordance-consistency guidance, which moves the
         body so that the motion matches the ADM's map (0 = off); None:
         :data:`DEFAULT_CONSISTENCY`.
+      grounding: ``auto``: a relation in the text ("closest to the door") narrows the named
+        objects by the scene's geometry before the ADM chooses; ``adm``: the ADM alone
+        (module docstring, step 2).
       checkpoints: None (shipped), a folder with ``adm.safetensors`` / ``amdm.safetensors``, or
         an ``(adm, amdm)`` pair of workdirs / files.
       num_points: surface samples taken from a mesh (default 100k); point clouds keep theirs.
@@ -565,6 +581,8 @@ def generate(
             raise GenerateError(f"{name} must be an integer ≥ {lo}, got {v!r}")
     if samples > 256:
         raise GenerateError(f"samples={samples} is more than 256; generate in several calls")
+    if grounding not in ("auto", "adm"):
+        raise GenerateError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
     adm_file, amdm_file = _resolve_checkpoints(checkpoints)
     text = _check_text(text)
     room = _load(scene, num_points)
@@ -604,13 +622,20 @@ def generate(
         lap("adm")
     if object_id is not None:
         centre = _object_centre(_object(room, object_id), lo, hi, spec.size)
-        chosen = int(object_id)
-    elif room_view:
-        centre, chosen = _region_from_view(room, text, view_index, view_maps, spec, lo, hi)
+        chosen, how = int(object_id), "object_id"
     else:
-        centre, chosen = _choose_region(get_pipe, room, text, emb, spec, k_tiles, adm_sampler, seed,
-                                        lo, hi)
-        lap("region")
+        candidates, how = candidate_objects(room, text, grounding)
+        if room_view:
+            centre, chosen = _region_from_view(room, candidates, view_index, view_maps, spec,
+                                               lo, hi)
+        else:
+            centre, chosen = _choose_region(get_pipe, room, candidates, emb, spec, k_tiles,
+                                            adm_sampler, seed, lo, hi)
+            lap("region")
+        if len(candidates) > 1:
+            how = "adm"
+        elif not candidates:
+            how = "adm peak"
     rng = np.random.default_rng([int(seed), 1])
     try:
         pick, pts, shift, rot = crop_at(rng, room.xyz, centre, spec)
@@ -666,7 +691,7 @@ def generate(
         crop_rgb=room.rgb[pick].astype(np.float32), affordance=aff, rotation=rot, shift=shift,
         object_id=None if object_id is None else int(object_id), target_id=chosen,
         seed=int(seed), steps=int(steps), guidance=(adm_w, amdm_w), consistency=consistency,
-        timings=times,
+        timings=times, grounding=how,
         view_xyz=None if view_index is None else room.xyz[view_index].astype(np.float32),
         view_affordance=None if view_maps is None else np.asarray(view_maps, np.float32),
     )
@@ -768,17 +793,40 @@ def _adm_maps(get_pipe, crops, emb, key, sampler) -> np.ndarray:
         jax.tree.map(lambda a: np.broadcast_to(a[0], (b, *a.shape[1:])), emb), sampler)))
 
 
-def _choose_region(get_pipe, room, text, emb, spec, key, sampler, seed, lo, hi):
+def candidate_objects(room, text: str, grounding: str = "auto") -> tuple[list[dict], str]:
+    """The objects the region may be centred on, and how they were found: the objects of the
+    category the text names (:func:`mentioned_objects`; ``"class"``), narrowed with
+    ``grounding="auto"`` by the relation of the text's referring expression when it parses
+    and picks some of them (:func:`jaxmotion.scene.instructions.resolve`; ``"scene graph"``).
+    ``([], "")`` when the text names no object of the room."""
+    candidates = mentioned_objects(room, text)
+    if grounding != "auto" or len(candidates) < 2:
+        return candidates, "class" if candidates else ""
+    from jaxmotion.scene.instructions import parse_instruction, resolve
+
+    try:
+        _, ref = parse_instruction(text)
+    except ValueError:  # not in the grammar the parser knows
+        return candidates, "class"
+    if ref.relation is None:
+        return candidates, "class"
+    picked = resolve(object_table(room), ref)
+    narrowed = [o for o in candidates if o["id"] in picked]
+    if not narrowed:  # the parser read another target class than mentioned_objects did
+        return candidates, "class"
+    return narrowed, "scene graph"
+
+
+def _choose_region(get_pipe, room, candidates, emb, spec, key, sampler, seed, lo, hi):
     """The crop centre for a text without ``object_id`` (see the module docstring):
 
-    - the room has an object table and the text names a category in it: the candidates are
-      those objects; the ADM is run on a crop centred on each and the one whose points it
-      lights up most (mean over its points of the strongest channel) wins;
+    - with ``candidates`` (:func:`candidate_objects`): the ADM is run on a crop centred on
+      each and the one whose points it lights up most (mean over its points of the strongest
+      channel) wins;
     - otherwise the room is tiled with half-overlapping squares and the tile holding the
       strongest pelvis-affordance peak (mean of its 32 strongest points) wins.
     Returns ``(centre, chosen object id or None)``.
     """
-    candidates = mentioned_objects(room, text)
     if candidates:
         centres = [_object_centre(o, lo, hi, spec.size) for o in candidates]
         if len(candidates) == 1:
@@ -832,16 +880,19 @@ def _room_view_maps(room, adm_cfg, emb, key, sampler, k: int, seed: int, aot_dir
         return lambda kd, p, c, e: pipe.sample_affordance(jax.random.wrap_key_data(kd), p, c, e,
                                                           sampler)
 
-    maps = np.asarray(jax.device_get(_aot_call(aot_dir, "adm_view", fingerprint, build, args)))
+    if aot_dir is None:  # sample_affordance is jitted itself: no tracing per call
+        maps = build()(*args)
+    else:
+        maps = _aot_call(aot_dir, "adm_view", fingerprint, build, args)
+    maps = np.asarray(jax.device_get(maps))
     return np.concatenate([c[1] for c in views]), maps.reshape(k, v * pts.shape[1], -1)
 
 
-def _region_from_view(room, text, view_index, view_maps, spec, lo, hi):
-    """The AMDM's square from a room-view ADM's maps (module docstring, step 2): the named
-    object the mean map lights up most (mean over its view points of the strongest channel),
-    else the strongest pelvis affordance. Returns ``(centre, chosen object id or None)``."""
+def _region_from_view(room, candidates, view_index, view_maps, spec, lo, hi):
+    """The AMDM's square from a room-view ADM's maps (module docstring, step 2): the candidate
+    the mean map lights up most (mean over its view points of the strongest channel), else
+    the strongest pelvis affordance. Returns ``(centre, chosen object id or None)``."""
     mean = view_maps.mean(axis=0)  # [M, 6], over samples
-    candidates = mentioned_objects(room, text)
     if len(candidates) == 1:
         return _object_centre(candidates[0], lo, hi, spec.size), candidates[0]["id"]
     if candidates:
@@ -857,5 +908,6 @@ def _region_from_view(room, text, view_index, view_maps, spec, lo, hi):
 def summary(res: Generation) -> str:
     """A JSON line describing a result (for the command line)."""
     return json.dumps({"text": res.text, "samples": res.num_samples, "frames": int(res.mask.sum()),
+                       "target_id": res.target_id, "grounding": res.grounding,
                        "fps": res.fps, "fit_error_cm": [round(float(e) * 100, 2) for e in res.fit_error],
                        "timings_s": {k: round(v, 3) for k, v in res.timings.items()}})

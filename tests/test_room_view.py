@@ -218,6 +218,7 @@ def test_room_view_eval_and_probe(room_runs):
 
 def test_room_view_generate(room_runs, tmp_path, monkeypatch):
     import jaxmotion
+    import jaxmotion.generation as G
 
     root, _, work, _, _ = room_runs
     monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "xla"))
@@ -229,7 +230,7 @@ def test_room_view_generate(room_runs, tmp_path, monkeypatch):
     # the crop's maps are the view's, carried
     want = np.asarray(carry_field(res.crop_xyz, res.view_xyz, res.view_affordance[0]))
     np.testing.assert_allclose(res.affordance[0], want, atol=1e-4)
-    assert "adm" in res.timings
+    assert "adm" in res.timings and res.grounding == "class"  # the demo room has one chair
     heat = res._scene_heat(res.scene.xyz[:500])
     assert heat.shape == (500,) and (heat > 0).any()
     again = jaxmotion.generate("demo", "sit on the chair next to the table", **kw)
@@ -238,3 +239,51 @@ def test_room_view_generate(room_runs, tmp_path, monkeypatch):
     oid = res.target_id
     one = jaxmotion.generate("demo", "sit on it", object_id=oid, **kw)
     assert one.target_id == oid and one.view_affordance is not None
+    assert one.grounding == "object_id"
+    with pytest.raises(G.GenerateError, match="grounding"):
+        jaxmotion.generate("demo", "sit on it", grounding="graph", **kw)
+
+
+# --- scene-graph grounding and the region probe ---------------------------------------------------
+def _box(i, cat, x, y, w=0.5):
+    return {"id": i, "category": cat, "bbox_min": [x, y, 0.0], "bbox_max": [x + w, y + w, 0.9]}
+
+
+def test_candidate_objects_narrows_by_the_relation():
+    from types import SimpleNamespace
+
+    from jaxmotion.generation import candidate_objects
+
+    room = SimpleNamespace(objects=[_box(1, "chair", 0.5, 0.5), _box(2, "chair", 4.0, 3.0),
+                                    _box(3, "door", 0.0, 1.5), _box(4, "table", 2.0, 2.0)])
+    ids = lambda c: [o["id"] for o in c[0]]  # noqa: E731
+    got = candidate_objects(room, "sit on the chair closest to the door")
+    assert ids(got) == [1] and got[1] == "scene graph"
+    got = candidate_objects(room, "please sit on the chair farthest from the door")
+    assert ids(got) == [2] and got[1] == "scene graph"
+    got = candidate_objects(room, "sit on the chair closest to the door", "adm")
+    assert ids(got) == [1, 2] and got[1] == "class"
+    assert candidate_objects(room, "sit on the chair")[1] == "class"
+    assert ids(candidate_objects(room, "walk to the door")) == [3]
+    assert candidate_objects(room, "dance a little") == ([], "")
+    # a relation that picks none of the named objects leaves them all to the ADM
+    got = candidate_objects(room, "sit on the chair on the table")
+    assert ids(got) == [1, 2] and got[1] == "class"
+
+
+def test_region_probe(tiny_runs):
+    from jaxmotion.eval.region_probe import main, region_probe
+
+    root, out = tiny_runs
+    kw = dict(split="test", num_cases=6, steps=2, seed=0)
+    auto = region_probe(out["data"], root / "adm", root / "amdm", **kw)
+    adm = region_probe(out["data"], root / "adm", root / "amdm", grounding="adm", **kw)
+    assert auto["cases"] == adm["cases"] >= 1 and auto["chance"] == adm["chance"]
+    assert 0.0 < auto["chance"] <= 1.0 and 0.0 <= adm["hit"] <= 1.0
+    # the synthetic instructions are unique referring expressions: the scene graph resolves
+    # every one, so generate's region choice finds every target
+    assert auto["hit"] == 1.0
+    with pytest.raises(ValueError, match="grounding"):
+        region_probe(out["data"], root / "adm", root / "amdm", grounding="graph", **kw)
+    assert main(["--data", str(out["data"]), "--adm", str(root / "adm"), "--amdm",
+                 str(root / "amdm"), "--split", "test", "--cases", "2", "--steps", "2"]) == 0

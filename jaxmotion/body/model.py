@@ -219,14 +219,32 @@ def _mannequin_bind_vertices(m, betas: np.ndarray) -> np.ndarray:
     return np.asarray(m.vertices(m.rest_pose()), np.float64)
 
 
-@functools.lru_cache(maxsize=4)
-def _load_mannequin_cached(anchor: tuple[float, ...]) -> BodyModel:
+def _mannequin_shape_basis(b0: np.ndarray, cache_root=None) -> tuple[np.ndarray, np.ndarray]:
+    """Bind vertices ``[V,3]`` at shape ``b0`` and their central-difference shape directions
+    ``[V,3,10]`` (21 calls into mannequin-x, about 0.7 s on CPU). When JAX's persistent
+    compilation cache is on (the command line and ``jaxmotion.generate`` turn it on), the result
+    is kept next to it (``body/``; or under ``cache_root``), keyed by the mannequin-x version,
+    the anchor and the step."""
+    import hashlib
+    import importlib.metadata
+
+    path = None
+    root = cache_root or jax.config.jax_compilation_cache_dir
+    if root:
+        try:
+            version = importlib.metadata.version("mannequin-x")
+        except importlib.metadata.PackageNotFoundError:  # pragma: no cover - odd install
+            version = "unknown"
+        key = hashlib.sha256(repr((version, b0.tolist(), _FD_STEP, NUM_BETAS)).encode())
+        path = Path(root) / "body" / f"mannequin-{key.hexdigest()[:24]}.npz"
+        if path.is_file():
+            try:
+                with np.load(path) as d:
+                    return d["v0"], d["dirs"]
+            except (OSError, ValueError, KeyError):  # damaged: rebuilt and rewritten below
+                pass
     import mannequin
 
-    wooden, calib = _mannequin_assets()
-    parents = tuple(int(p) for p in wooden["parents"])
-    _check_tree(parents)
-    b0 = np.asarray(anchor, np.float64)
     m = mannequin.Mannequin("wooden", flat_hand_mean=True)
     v0 = _mannequin_bind_vertices(m, b0)
     dirs = np.zeros((*v0.shape, NUM_BETAS))
@@ -236,6 +254,25 @@ def _load_mannequin_cached(anchor: tuple[float, ...]) -> BodyModel:
         dirs[..., i] = (
             _mannequin_bind_vertices(m, b0 + e) - _mannequin_bind_vertices(m, b0 - e)
         ) / (2 * _FD_STEP)
+    if path is not None:
+        try:
+            from jaxmotion._atomic import atomic_open
+
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with atomic_open(path, "wb") as f:
+                np.savez(f, v0=v0, dirs=dirs)
+        except OSError:
+            pass  # a read-only cache: rebuilt next time
+    return v0, dirs
+
+
+@functools.lru_cache(maxsize=4)
+def _load_mannequin_cached(anchor: tuple[float, ...]) -> BodyModel:
+    wooden, calib = _mannequin_assets()
+    parents = tuple(int(p) for p in wooden["parents"])
+    _check_tree(parents)
+    b0 = np.asarray(anchor, np.float64)
+    v0, dirs = _mannequin_shape_basis(b0)
     num_joints = len(parents)
     fixed = np.zeros((num_joints, 3))
     # Joints 22, 23 (hand roots) are unposed; the 30 finger joints hold the hand mean.

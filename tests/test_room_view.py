@@ -110,10 +110,15 @@ def room_runs(tiny_runs, tmp_path_factory):
     from jaxmotion.train.tasks import get_task
 
     root, out = tiny_runs
-    work = tmp_path_factory.mktemp("room") / "adm_room"
+    here = tmp_path_factory.mktemp("room")
+    work, seg = here / "adm_room", here / "segmentation"
+    # its own backbone: another test removes the shared one (ADM files embed theirs)
+    seg_cfg = load_config("configs/segmentation.py", [
+        f"data_dir={out['data']}", "preset=tiny", "steps=5", f"workdir={seg}"])
+    train(seg_cfg, get_task(seg_cfg))
     cfg = load_config("configs/adm.py", [
         f"data_dir={out['data']}", "preset=tiny", "steps=10", "log_every=5", "eval_every=10",
-        f"workdir={work}", f"backbone_workdir={root / 'segmentation'}",
+        f"workdir={work}", f"backbone_workdir={seg}",
         f"init_from={root / 'adm'}", "crop.centre=room", "crop.size=8"])
     return root, out["data"], work, cfg, train(cfg, get_task(cfg))
 
@@ -132,17 +137,17 @@ def test_init_from_starts_from_the_other_runs_weights(room_runs):
     mine = flatten_state(nnx.state(net.adm, nnx.Param))
     assert mine and all(np.array_equal(np.asarray(v), src[f"params/adm/{k}"])
                         for k, v in mine.items())
+    seg = work.parent / "segmentation"
     bad = load_config("configs/adm.py", [
         f"data_dir={data}", "preset=tiny", f"workdir={work}_bad",
-        f"backbone_workdir={root / 'segmentation'}", f"init_from={root / 'adm'}",
-        "model.text_tokens=4"])
+        f"backbone_workdir={seg}", f"init_from={root / 'adm'}", "model.text_tokens=4"])
     with pytest.raises(ValueError, match="differs in text_tokens"):
         get_task(bad).build_model(bad, nnx.Rngs(0))
-    seg = load_config("configs/adm.py", [
+    other = load_config("configs/adm.py", [
         f"data_dir={data}", "preset=tiny", f"workdir={work}_seg",
-        f"backbone_workdir={root / 'segmentation'}", f"init_from={root / 'segmentation'}"])
+        f"backbone_workdir={seg}", f"init_from={seg}"])
     with pytest.raises(ValueError, match="not an ADM"):
-        get_task(seg).build_model(seg, nnx.Rngs(0))
+        get_task(other).build_model(other, nnx.Rngs(0))
 
 
 def test_amdm_refuses_a_room_view_adm_for_its_predicted_maps(room_runs, tmp_path):

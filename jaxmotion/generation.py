@@ -24,7 +24,7 @@ Steps:
    is left (``grounding="adm"``: always among all the candidates; the shipped ADMs pick
    among same-class objects no better than chance, see ``docs/results.md``):
 
-   - a **room-view ADM** (the shipped one; trained with ``crop.centre=room``) is run once on
+   - a **room-view ADM** (trained with ``crop.centre=room``; experimental) is run once on
      its view of the whole room (rooms wider than its 8 m square are tiled) for every sample;
      the candidate the maps light up most is chosen, or without candidates the square is
      centred on the strongest pelvis affordance. The maps are carried to
@@ -59,10 +59,10 @@ from jaxmotion._version import __version__
 
 __all__ = [
     "DEFAULT_CONSISTENCY",
-    "candidate_objects",
     "DEFAULT_TEXT",
     "GenerateError",
     "Generation",
+    "candidate_objects",
     "default_checkpoints",
     "demo_scene",
     "generate",

@@ -136,3 +136,19 @@ def test_two_devices_data_parallel(tmp_path):
     one = train(cfg_for(tmp_path / "one", steps=30), RegressionTask()).last_loss
     np.testing.assert_allclose(loss, one, rtol=1e-4)  # same maths, other reduction order
     assert "not divisible by the 2 devices" in out.stdout
+
+
+def test_resume_accepts_a_run_saved_before_a_setting_was_added(tmp_path):
+    """A config.json written before ``crop.centre`` existed resumes (the missing setting is
+    its default); a real difference in the same section still refuses."""
+    train(cfg_for(tmp_path, steps=20), RegressionTask())
+    path = tmp_path / "run" / "config.json"
+    saved = json.loads(path.read_text())
+    del saved["crop"]["centre"]
+    path.write_text(json.dumps(saved))
+    res = train(cfg_for(tmp_path, steps=40), RegressionTask())
+    assert res.resumed_from == 20 and res.step == 40
+    saved["crop"]["size"] = 8.0
+    path.write_text(json.dumps(saved))
+    with pytest.raises(ValueError, match="different config.*crop"):
+        train(cfg_for(tmp_path, steps=60), RegressionTask())

@@ -36,7 +36,7 @@ from flax import nnx
 from jax.sharding import NamedSharding
 from jax.sharding import PartitionSpec as P
 
-from jaxmotion.config import config_to_dict, save_config_json
+from jaxmotion.config import config_from_dict, config_to_dict, save_config_json
 from jaxmotion.train.checkpoint import Checkpointer
 from jaxmotion.train.export import save_weights
 from jaxmotion.train.metrics import MetricsWriter
@@ -122,6 +122,10 @@ def _check_compatible(workdir: Path, cfg) -> None:
     if not path.is_file():
         return
     old, new = json.loads(path.read_text()), config_to_dict(cfg)
+    try:  # settings added since the run was saved count as their defaults
+        old = config_to_dict(config_from_dict(type(cfg), old))
+    except (TypeError, ValueError, KeyError):
+        pass
     free = {"steps", "resume", "workdir", "log_every", "eval_every", "ckpt_every", "progress",
             "keep_checkpoints", "data_dir"}
     diff = sorted(k for k in set(old) | set(new) if k not in free and old.get(k) != new.get(k))

@@ -624,18 +624,12 @@ def generate(
         centre = _object_centre(_object(room, object_id), lo, hi, spec.size)
         chosen, how = int(object_id), "object_id"
     else:
-        candidates, how = candidate_objects(room, text, grounding)
-        if room_view:
-            centre, chosen = _region_from_view(room, candidates, view_index, view_maps, spec,
-                                               lo, hi)
-        else:
-            centre, chosen = _choose_region(get_pipe, room, candidates, emb, spec, k_tiles,
-                                            adm_sampler, seed, lo, hi)
+        centre, chosen, how = _find_region(
+            room, text, grounding, spec,
+            view=(view_index, view_maps) if room_view else None,
+            adm=(get_pipe, emb, k_tiles, adm_sampler, seed))
+        if not room_view:
             lap("region")
-        if len(candidates) > 1:
-            how = "adm"
-        elif not candidates:
-            how = "adm peak"
     rng = np.random.default_rng([int(seed), 1])
     try:
         pick, pts, shift, rot = crop_at(rng, room.xyz, centre, spec)
@@ -817,6 +811,33 @@ def candidate_objects(room, text: str, grounding: str = "auto") -> tuple[list[di
     return narrowed, "scene graph"
 
 
+def _lit(maps, instance, object_id) -> float:
+    """How much ``maps [N,6]`` light up an object: the mean over its points (``instance [N]``
+    == ``object_id``) of the strongest channel; −1 when none of its points is there."""
+    on = instance == object_id
+    return float(maps[on].max(axis=-1).mean()) if on.any() else -1.0
+
+
+def _find_region(room, text, grounding, spec, *, view=None, adm=None):
+    """Step 2 of the module docstring without ``object_id``: ``(centre, chosen object id or
+    None, how)``. ``view``: a room-view ADM's ``(view_index, maps)``
+    (:func:`_room_view_maps`); else ``adm``: ``(get_pipe, emb, key, sampler, seed)`` for
+    :func:`_choose_region`. ``how`` is :attr:`Generation.grounding`."""
+    lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
+    candidates, how = candidate_objects(room, text, grounding)
+    if view is not None:
+        centre, chosen = _region_from_view(room, candidates, *view, spec, lo, hi)
+    else:
+        get_pipe, emb, key, sampler, seed = adm
+        centre, chosen = _choose_region(get_pipe, room, candidates, emb, spec, key, sampler,
+                                        seed, lo, hi)
+    if len(candidates) > 1:
+        how = "adm"
+    elif not candidates:
+        how = "adm peak"
+    return centre, chosen, how
+
+
 def _choose_region(get_pipe, room, candidates, emb, spec, key, sampler, seed, lo, hi):
     """The crop centre for a text without ``object_id`` (see the module docstring):
 
@@ -833,10 +854,8 @@ def _choose_region(get_pipe, room, candidates, emb, spec, key, sampler, seed, lo
             return centres[0], candidates[0]["id"]
         crops = _crops(room, centres, spec, seed, 2)
         maps = _adm_maps(get_pipe, crops, emb, key, sampler)
-        scores = []
-        for (i, pick, *_), a in zip(crops, maps, strict=True):
-            on = room.instance[pick] == candidates[i]["id"]
-            scores.append(float(a[on].max(axis=-1).mean()) if on.any() else -1.0)
+        scores = [_lit(a, room.instance[pick], candidates[i]["id"])
+                  for (i, pick, *_), a in zip(crops, maps, strict=True)]
         i = crops[int(np.argmax(scores))][0]
         return centres[i], candidates[i]["id"]
     tiles = _centres(lo, hi, spec.size)
@@ -870,7 +889,9 @@ def _room_view_maps(room, adm_cfg, emb, key, sampler, k: int, seed: int, aot_dir
     pts = np.stack([c[2] for c in views])
     col = np.stack([c[3] for c in views])
     # every sample sees every tile: a batch of K x V
-    rep = lambda x: np.ascontiguousarray(np.repeat(x[None], k, 0).reshape(k * v, *x.shape[1:]))  # noqa: E731
+    def rep(x):
+        return np.ascontiguousarray(np.repeat(x[None], k, 0).reshape(k * v, *x.shape[1:]))
+
     args = (np.asarray(jax.random.key_data(key)), rep(pts), rep(col),
             jax.tree.map(lambda a: np.ascontiguousarray(np.broadcast_to(a, (k * v, *a.shape))),
                          emb))
@@ -897,8 +918,7 @@ def _region_from_view(room, candidates, view_index, view_maps, spec, lo, hi):
         return _object_centre(candidates[0], lo, hi, spec.size), candidates[0]["id"]
     if candidates:
         inst = room.instance[view_index]
-        scores = [float(mean[inst == o["id"]].max(axis=-1).mean()) if (inst == o["id"]).any()
-                  else -1.0 for o in candidates]
+        scores = [_lit(mean, inst, o["id"]) for o in candidates]
         best = candidates[int(np.argmax(scores))]
         return _object_centre(best, lo, hi, spec.size), best["id"]
     peak = room.xyz[view_index[int(np.argmax(mean[:, 0]))]]
@@ -908,6 +928,6 @@ def _region_from_view(room, candidates, view_index, view_maps, spec, lo, hi):
 def summary(res: Generation) -> str:
     """A JSON line describing a result (for the command line)."""
     return json.dumps({"text": res.text, "samples": res.num_samples, "frames": int(res.mask.sum()),
-                       "target_id": res.target_id, "grounding": res.grounding,
-                       "fps": res.fps, "fit_error_cm": [round(float(e) * 100, 2) for e in res.fit_error],
+                       "target_id": res.target_id, "grounding": res.grounding, "fps": res.fps,
+                       "fit_error_cm": [round(float(e) * 100, 2) for e in res.fit_error],
                        "timings_s": {k: round(v, 3) for k, v in res.timings.items()}})

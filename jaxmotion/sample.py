@@ -141,11 +141,6 @@ class AffordancePipeline:
         return self.adm_config.get("crop", {}).get("centre", "motion") == "room"
 
     @property
-    def adm_crop(self) -> dict:
-        """The ADM's training crop settings (its config's ``crop`` section)."""
-        return dict(self.adm_config.get("crop", {}))
-
-    @property
     def text_tokens(self) -> int:
         """Token states per text the ADM reads (0 = the pooled embedding only)."""
         return int(getattr(self.adm_net.adm.cfg, "text_tokens", 0))

@@ -170,7 +170,7 @@ def test_room_view_cases_and_sampling(room_runs, tmp_path):
 
     root, data, work, _, _ = room_runs
     pipe = AffordancePipeline.from_workdirs(work, root / "amdm")
-    assert pipe.room_view and pipe.adm_crop["size"] == 8.0
+    assert pipe.room_view and pipe.adm_config["crop"]["size"] == 8.0
     cases, spec = load_cases(data, "test", pipe.amdm_config, num_cases=3,
                              adm_config=pipe.adm_config)
     plain, _ = load_cases(data, "test", pipe.amdm_config, num_cases=3)

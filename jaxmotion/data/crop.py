@@ -44,6 +44,10 @@ class CropSpec:
     margin: float = 0.3
     centre: str = "motion"
 
+    def __post_init__(self):
+        if self.centre not in ("motion", "room"):
+            raise ValueError(f"CropSpec.centre must be 'motion' or 'room', got {self.centre!r}")
+
 
 @dataclass(frozen=True)
 class Crop:
@@ -109,11 +113,9 @@ def crop_sample(
         room_c = 0.5 * (xyz[:, :2].min(0) + xyz[:, :2].max(0))
         centre = np.where(fits, np.clip(room_c, np.minimum(c_lo, c_hi), np.maximum(c_lo, c_hi)),
                           0.5 * (lo + hi))
-    elif spec.centre == "motion":
+    else:
         centre = np.where(fits, rng.uniform(np.minimum(c_lo, c_hi), np.maximum(c_lo, c_hi)),
                           0.5 * (lo + hi))
-    else:
-        raise ValueError(f"CropSpec.centre must be 'motion' or 'room', got {spec.centre!r}")
 
     try:
         pick, pts, shift, rot = crop_at(rng, xyz, centre, spec)

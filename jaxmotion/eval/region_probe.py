@@ -5,7 +5,7 @@ do; the crop's placement alone then tells a lot about where the target is (the o
 target's class nearest to the crop's centre is the target in about 9 cases out of 10 on the
 synthetic validation split). ``generate`` has no such crop: it must find the region in the
 whole room. This probe runs generate's region choice (:func:`jaxmotion.generation
-.candidate_objects`, then the ADM among the candidates, exactly as ``generate`` does) on a
+.candidate_objects`, then the ADM among the candidates: the very code ``generate`` runs) on a
 split's rooms and instructions and counts how often the chosen object is the target:
 
 - ``hit``: over all cases; ``hit_multi``: over the cases whose room has several objects of
@@ -65,18 +65,14 @@ def region_probe(data_dir, adm=None, amdm=None, *, split: str = "val", num_cases
         room = load_scene(Path(data_dir) / "scenes" / f"{s['scene_id']}.npz")
         text, target = str(s["text"]), int(s["target_id"])
         named = G.mentioned_objects(room, text)
-        candidates, _ = G.candidate_objects(room, text, grounding)
         emb = pipe.embed_text([text], encoder)
-        lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
         key = jax.random.fold_in(jax.random.key(seed), i)
+        view = None
         if pipe.room_view:
-            index, maps = G._room_view_maps(room, pipe.adm_config,
-                                            jax.tree.map(lambda a: a[0], emb), key, sampler, 1,
-                                            seed + i, None, "", lambda: pipe)
-            _, chosen = G._region_from_view(room, candidates, index, maps, spec, lo, hi)
-        else:
-            _, chosen = G._choose_region(lambda: pipe, room, candidates, emb, spec, key, sampler,
-                                         seed + i, lo, hi)
+            view = G._room_view_maps(room, pipe.adm_config, jax.tree.map(lambda a: a[0], emb),
+                                     key, sampler, 1, seed + i, None, "", lambda: pipe)
+        _, chosen, _ = G._find_region(room, text, grounding, spec, view=view,
+                                      adm=(lambda: pipe, emb, key, sampler, seed + i))
         has = any(o["id"] == target for o in named)
         rows.append((chosen == target, len(named) > 1, (1.0 / len(named)) if has else 0.0))
     hit, multi, chance = (np.array(c, float) for c in zip(*rows, strict=True))

@@ -120,7 +120,8 @@ def _rates(hits) -> dict:
 
 def anchor_visible(case, min_points: int = 5) -> bool:
     """Whether an object of the anchor's class has at least ``min_points`` points in the case's
-    crop (or the ADM's view): only then can any model that sees the crop resolve "closest / farthest from it"."""
+    crop (or the ADM's view): only then can any model that sees the crop resolve "closest /
+    farthest from it"."""
     from jaxmotion.scene.instructions import parse_instruction
 
     _, ref = parse_instruction(case["text"])

@@ -218,7 +218,21 @@ def test_room_view_eval_and_probe(room_runs):
     assert np.isfinite(summ["success@0.3"]["mean"])
     r = relation_probe(data, work, root / "amdm", splits=("val", "test"), num_cases=12, steps=2,
                        batch_size=4)
-    assert r["cases"] >= 0 and "hit_original" in r
+    # the probe picks its cases on the ADM's view: several objects of the target's class there,
+    # and a closest / farthest relation
+    from jaxmotion.eval.relation_probe import canonical_pair
+    from jaxmotion.sample import AffordancePipeline, load_cases
+
+    pipe = AffordancePipeline.from_workdirs(work, root / "amdm")
+    want = 0
+    for split in ("val", "test"):
+        cases, _ = load_cases(data, split, pipe.amdm_config, num_cases=12,
+                              adm_config=pipe.adm_config)
+        want += sum(c["view"]["target_class_mask"].sum() > c["view"]["target_mask"].sum()
+                    and canonical_pair(c["text"]) is not None for c in cases)
+    assert r["cases"] == want
+    assert all(0.0 <= r[k] <= 1.0 or (want == 0 and np.isnan(r[k]))
+               for k in ("hit_original", "hit_true", "hit_opposite", "hit_both"))
 
 
 def test_room_view_generate(room_runs, tmp_path, monkeypatch):

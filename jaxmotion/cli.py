@@ -168,7 +168,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     report = evaluate(args.data, models, split=args.split, num_cases=args.cases,
                       samples=args.samples, replications=args.replications, seed=args.seed,
                       body=not args.joints_only, evaluator=args.evaluator,
-                      vertex_stride=args.vertex_stride, batch_size=args.batch_size)
+                      vertex_stride=args.vertex_stride, batch_size=args.batch_size,
+                      protocol=args.protocol, grounding=args.grounding)
     paths = write_report(report, args.out)
     print(format_markdown(report))
     print(f"wrote {paths[0]} and {paths[1]}", file=sys.stderr)
@@ -318,6 +319,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--vertex-stride", type=int, default=4,
                    help="use every Nth body vertex for the signed distances (default 4; 1 = all)")
     p.add_argument("--batch-size", type=int, default=16)
+    p.add_argument("--protocol", choices=("paper", "generate"), default="paper",
+                   help="paper (default): crop each case around the dataset's motion, as the "
+                   "papers do; generate: crop where `jaxmotion generate` would, from the room "
+                   "and the text alone (scores the whole job, finding the object included)")
+    p.add_argument("--grounding", choices=("auto", "adm"), default="auto",
+                   help="with --protocol generate: how the region is found, as `jaxmotion "
+                   "generate --grounding` (default auto)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="results", help="output folder (default: results)")
     p.set_defaults(func=_cmd_eval)

@@ -34,7 +34,13 @@ Steps:
      grounding); without candidates, the room is tiled with half-overlapping squares and the
      tile with the strongest predicted pelvis-affordance peak is used.
 3. **ADM → AMDM**: affordance maps then motions for ``samples`` seeds, jitted, vmapped
-   programs (DDIM with ``steps`` steps per stage).
+   programs (DDIM with ``steps`` steps per stage). Once the target object is known (given as
+   ``object_id``, or chosen with ``grounding="auto"``), the other objects of its class in the
+   square are left out of the ADM's map: at every step the map's clean estimate is set to "no
+   affordance" on their points (``exclude`` of
+   :meth:`~jaxmotion.sample.AffordancePipeline.sample_affordance`), so the sampler puts the
+   map elsewhere; the shipped ADM otherwise often lights another chair than the chosen one.
+   (Not for a room-view ADM, whose map comes from its view.)
 4. **Body**: SMPL-X parameters fitted to the joints (:func:`jaxmotion.body.fit_joints_to_body`).
 
 The checkpoints default to the ones shipped in the package (``jaxmotion/assets``, trained on the
@@ -66,6 +72,7 @@ __all__ = [
     "default_checkpoints",
     "demo_scene",
     "generate",
+    "same_class_others",
 ]
 
 DEFAULT_TEXT = "sit on the chair next to the table"
@@ -333,6 +340,8 @@ class Generation:
       grounding: how the region was chosen: ``object_id``, ``scene graph`` (the text's
         relation singled the object out), ``class`` (the only object of the named class),
         ``adm`` (the ADM's map chose among candidates) or ``adm peak`` (no candidates).
+      excluded: ids of the objects the ADM's map was kept off (the other objects of the
+        target's class, once the target was known; step 3 of the module docstring).
       seed, steps: as passed; guidance: the ``(ADM, AMDM)`` guidance scales used;
       consistency: the affordance-consistency strength used (0 = off).
       timings: seconds per stage.
@@ -360,6 +369,7 @@ class Generation:
     view_xyz: np.ndarray | None = None
     view_affordance: np.ndarray | None = None
     grounding: str = ""
+    excluded: tuple[int, ...] = ()
 
     @property
     def num_samples(self) -> int:
@@ -405,6 +415,7 @@ class Generation:
                          consistency=np.float32(self.consistency),
                          scene_name=np.array(self.scene.name),
                          grounding=np.array(self.grounding),
+                         excluded=np.asarray(self.excluded, np.int64),
                          **({} if self.view_xyz is None else {
                              "view_xyz": self.view_xyz.astype(np.float32),
                              "view_affordance": self.view_affordance.astype(np.float16)}))
@@ -636,6 +647,11 @@ def generate(
     except ValueError as e:
         raise GenerateError(f"the scene has no points near the chosen region: {e}") from e
     colors = model_colors(room.rgb[pick])
+    # once the target is known (given, or found with the scene graph's help), the other
+    # objects of its class are left out of the ADM's map (module docstring, step 3)
+    excluded = (same_class_others(object_table(room), chosen)
+                if object_id is not None or grounding == "auto" else [])
+    exclude = np.isin(room.instance[pick], excluded)
 
     args = (np.asarray(jax.random.key_data(k_main)), tile(pts), tile(colors),
             jax.tree.map(lambda a: tile(a[0]), emb), np.ones((k, t_frames), bool))
@@ -651,9 +667,12 @@ def generate(
         if room_view:
             return lambda kd, p, c, e, m, a: pipe.sample(jax.random.wrap_key_data(kd), p, c, e,
                                                          m, amdm=amdm_sampler, affordance=a)
-        return lambda kd, p, c, e, m: pipe.sample(jax.random.wrap_key_data(kd), p, c, e, m,
-                                                  adm=adm_sampler, amdm=amdm_sampler)
+        return lambda kd, p, c, e, m, x: pipe.sample(jax.random.wrap_key_data(kd), p, c, e, m,
+                                                     adm=adm_sampler, amdm=amdm_sampler,
+                                                     exclude=x)
 
+    if not room_view:
+        args = (*args, tile(exclude))
     res = _aot_call(aot_dir, "sample", _digest(versions, adm_sampler, amdm_sampler, Path(adm_file),
                                               Path(amdm_file)),
                     build_sampler, args)
@@ -685,7 +704,7 @@ def generate(
         crop_rgb=room.rgb[pick].astype(np.float32), affordance=aff, rotation=rot, shift=shift,
         object_id=None if object_id is None else int(object_id), target_id=chosen,
         seed=int(seed), steps=int(steps), guidance=(adm_w, amdm_w), consistency=consistency,
-        timings=times, grounding=how,
+        timings=times, grounding=how, excluded=tuple(excluded) if not room_view else (),
         view_xyz=None if view_index is None else room.xyz[view_index].astype(np.float32),
         view_affordance=None if view_maps is None else np.asarray(view_maps, np.float32),
     )
@@ -811,6 +830,17 @@ def candidate_objects(room, text: str, grounding: str = "auto") -> tuple[list[di
     return narrowed, "scene graph"
 
 
+def same_class_others(objects, object_id) -> list[int]:
+    """Ids of the objects of ``object_id``'s category other than it: once the target is
+    known, the points the ADM's map must leave out (``exclude`` of
+    :meth:`jaxmotion.sample.AffordancePipeline.sample_affordance`); ``[]`` when
+    ``object_id`` is None or not in ``objects``."""
+    cat = next((o["category"] for o in objects if o["id"] == object_id), None)
+    if object_id is None or cat is None:
+        return []
+    return [int(o["id"]) for o in objects if o["category"] == cat and o["id"] != object_id]
+
+
 def _lit(maps, instance, object_id) -> float:
     """How much ``maps [N,6]`` light up an object: the mean over its points (``instance [N]``
     == ``object_id``) of the strongest channel; −1 when none of its points is there."""
@@ -928,6 +958,7 @@ def _region_from_view(room, candidates, view_index, view_maps, spec, lo, hi):
 def summary(res: Generation) -> str:
     """A JSON line describing a result (for the command line)."""
     return json.dumps({"text": res.text, "samples": res.num_samples, "frames": int(res.mask.sum()),
-                       "target_id": res.target_id, "grounding": res.grounding, "fps": res.fps,
+                       "target_id": res.target_id, "grounding": res.grounding,
+                       "excluded": list(res.excluded), "fps": res.fps,
                        "fit_error_cm": [round(float(e) * 100, 2) for e in res.fit_error],
                        "timings_s": {k: round(v, 3) for k, v in res.timings.items()}})

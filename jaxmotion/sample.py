@@ -164,7 +164,7 @@ class AffordancePipeline:
         return {"pooled": pooled, "tokens": tokens, "mask": mask}
 
     # -- one example (vmapped below) ---------------------------------------------------------
-    def _affordance_one(self, key, points, colors, text, spec: SamplerSpec):
+    def _affordance_one(self, key, points, colors, text, spec: SamplerSpec, exclude=None):
         from jaxmotion.models import adm_text_cond
 
         net = self.adm_net
@@ -180,8 +180,12 @@ class AffordancePipeline:
             raise ValueError(f"this ADM reads word-level text ({self.text_tokens} tokens): pass "
                              "the text condition of AffordancePipeline.embed_text, not a pooled "
                              "embedding array")
+        refine = None
+        if exclude is not None:  # no affordance there (0, normalised) in every clean estimate
+            far = -self.a_mean / self.a_std
+            refine = lambda x0, t: jnp.where(exclude[None, :, None], far, x0)  # noqa: E731
         x0 = spec.run(key, denoise, self.adm_schedule, shape, adm_text_cond(text),
-                      lambda c: jax.tree.map(jnp.zeros_like, c))
+                      lambda c: jax.tree.map(jnp.zeros_like, c), refine)
         aff = x0[0] * self.a_std + self.a_mean
         return jnp.clip(aff, 0.0, 1.0)
 
@@ -225,9 +229,12 @@ class AffordancePipeline:
     # -- batched, jitted entry points --------------------------------------------------------
     @functools.cached_property
     def _jitted(self):
-        def aff(spec, keys, points, colors, text):
-            return jax.vmap(lambda k, p, c, e: self._affordance_one(k, p, c, e, spec))(
-                keys, points, colors, text)
+        def aff(spec, keys, points, colors, text, exclude):
+            if exclude is None:
+                return jax.vmap(lambda k, p, c, e: self._affordance_one(k, p, c, e, spec))(
+                    keys, points, colors, text)
+            return jax.vmap(lambda k, p, c, e, x: self._affordance_one(k, p, c, e, spec, x))(
+                keys, points, colors, text, exclude)
 
         def mot(spec, keys, points, feats, text, mask):
             return jax.vmap(lambda k, p, f, e, m: self._motion_one(k, p, f, e, m, spec))(
@@ -235,11 +242,22 @@ class AffordancePipeline:
 
         return jax.jit(aff, static_argnums=0), jax.jit(mot, static_argnums=0)
 
-    def sample_affordance(self, key, points, colors, text_emb, spec=SamplerSpec(steps=50)):
+    def sample_affordance(self, key, points, colors, text_emb, spec=SamplerSpec(steps=50),
+                          exclude=None):
         """``[B,N,3], [B,N,3], text -> [B,N,6]`` affordance maps in [0, 1] (``text``: see
-        :meth:`embed_text`)."""
+        :meth:`embed_text`).
+
+        ``exclude``: optional ``[B,N]`` bool, points known not to be the target (e.g. the other
+        objects of the target's class once the target is known). At every step the clean
+        estimate is set to 0 (no affordance) on them, as in inpainting, so the sampler puts the
+        map elsewhere; all False gives the same maps as None."""
         keys = jax.random.split(key, points.shape[0])
-        return self._jitted[0](spec, keys, points, colors, text_emb)
+        if exclude is not None:
+            exclude = jnp.asarray(exclude, bool)
+            if exclude.shape != points.shape[:2]:
+                raise ValueError(f"exclude must be [B, N] = {tuple(points.shape[:2])}, got "
+                                 f"{tuple(exclude.shape)}")
+        return self._jitted[0](spec, keys, points, colors, text_emb, exclude)
 
     def sample_motion(self, key, points, scene_feat, text_emb, mask, spec=SamplerSpec(steps=50)):
         """``scene_feat``: the affordance map [B,N,6] (or rgb for the one-stage model);
@@ -248,7 +266,7 @@ class AffordancePipeline:
         return self._jitted[1](spec, keys, points, scene_feat, text_emb, mask)
 
     def sample(self, key, points, colors, text_emb, mask, *, adm=SamplerSpec(steps=50),
-               amdm=SamplerSpec(steps=50), affordance=None, view=None) -> dict:
+               amdm=SamplerSpec(steps=50), affordance=None, view=None, exclude=None) -> dict:
         """Both stages: affordance from scene + text, then motion from affordance + text.
 
         ``affordance``: maps ``[B,N,6]`` in [0, 1] to use instead of sampling the ADM (e.g. the
@@ -256,8 +274,12 @@ class AffordancePipeline:
         ``view``: for a room-view ADM (:attr:`room_view`), ``{"points" [B,M,3], "colors"
         [B,M,3], "in_crop" [B,M,3]}``: the ADM's input in its own frame, and the same points
         in the crop frame; the ADM's map on them (returned as ``view_affordance``) is carried
-        to the crop's points."""
+        to the crop's points. ``exclude``: ``[B,N]`` crop points the ADM's map must leave out
+        (:meth:`sample_affordance`; not with ``view``)."""
         ka, km = jax.random.split(key)
+        if exclude is not None and view is not None:
+            raise ValueError("exclude applies to an ADM on the crop; a room-view ADM's map is "
+                             "carried from its view: leave exclude out")
         if self.amdm.cfg.scene_input == "rgb":
             return {"joints": self.sample_motion(km, points, colors, text_emb, mask, amdm)}
         out = {}
@@ -272,7 +294,7 @@ class AffordancePipeline:
                 raise ValueError("this ADM was trained on the room view (crop.centre=room): pass "
                                  "view={'points', 'colors', 'in_crop'} (load_cases and "
                                  "case_inputs build it), or maps as affordance=")
-            aff = self.sample_affordance(ka, points, colors, text_emb, adm)
+            aff = self.sample_affordance(ka, points, colors, text_emb, adm, exclude)
         return {**out, "affordance": aff,
                 "joints": self.sample_motion(km, points, aff, text_emb, mask, amdm)}
 
@@ -292,7 +314,7 @@ def _tile(tree, b):
 
 def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | None = None,
                seed: int = 0, num_points: int | None = None,
-               adm_config: dict | None = None) -> tuple[list[dict], Any]:
+               adm_config: dict | None = None, centres=None) -> tuple[list[dict], Any]:
     """The first ``num_cases`` samples of a split as model inputs: crops as in training (the
     AMDM run's ``crop`` config, no rotation), padded to its ``max_frames``. Each case: ``text``,
     ``action``, ``points``, ``colors``, ``mask``, ``gt`` joints, ``target_mask`` (the target
@@ -320,6 +342,8 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
     if not files:
         raise FileNotFoundError(f"{Path(data_dir) / 'samples' / split}: no samples; build a "
                                 "dataset with `jaxmotion synth --out DIR`")
+    if centres is not None and len(centres) != len(files):
+        raise ValueError(f"load_cases: {len(centres)} crop centres for {len(files)} cases")
     cases = []
     for i, f in enumerate(files):
         s = load_sample(f)
@@ -328,7 +352,8 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
             sem = sc["semantic"] if "semantic" in sc.files else None
             objects = json.loads(str(sc["objects"])) if "objects" in sc.files else []
         c = crop_sample(np.random.default_rng([seed, i]), xyz, rgb, inst, s["joints"], s["mask"],
-                        s["target_id"], spec)
+                        s["target_id"], spec,
+                        centre=None if centres is None else centres[i])
         class_of = lambda crop: crop.target_mask  # noqa: E731  (no labels: the instance)
         on_target = inst == s["target_id"]
         if sem is not None and on_target.any():
@@ -359,13 +384,17 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
 
 def case_inputs(cases: list[dict], idx) -> dict:
     """The pipeline's inputs for cases ``idx`` (as :func:`load_cases` makes them), stacked:
-    ``points``, ``colors``, ``mask`` and ``view`` (stacked, or None without views)."""
+    ``points``, ``colors``, ``mask``, ``view`` (stacked, or None without views) and
+    ``exclude`` (stacked, or None when the cases have none)."""
     stack = lambda get: np.stack([get(cases[i]) for i in idx])  # noqa: E731
+    exclude = None
+    if cases[idx[0]].get("exclude") is not None:
+        exclude = stack(lambda c: c["exclude"])
     view = None
     if cases[idx[0]].get("view") is not None:
         view = {k: stack(lambda c, k=k: c["view"][k]) for k in ("points", "colors", "in_crop")}
     return {"points": stack(lambda c: c["points"]), "colors": stack(lambda c: c["colors"]),
-            "mask": stack(lambda c: c["mask"]), "view": view}
+            "mask": stack(lambda c: c["mask"]), "view": view, "exclude": exclude}
 
 
 def sample_split(data_dir, split, adm_workdir, amdm_workdir, out, *, num_cases: int = 8,

@@ -283,3 +283,39 @@ def test_exported_programs_are_reused_only_for_the_same_code_and_shapes(tmp_path
     monkeypatch.setattr(G, "_code_digest", lambda: "edited sources")
     G._aot_call(tmp_path, "f", "v1", build, (x,))  # the code changed: traced again
     assert len(calls) == 3 and len(list(tmp_path.glob("f-*.jaxexport"))) == 3
+
+
+def test_known_target_keeps_the_map_off_its_class_mates(tiny_runs, ckpt):
+    """With object_id (or grounding=auto) the other objects of the target's class are left
+    out of the ADM's map; with grounding=adm and no object_id nothing is left out."""
+    from jaxmotion.generation import object_table, same_class_others
+    from jaxmotion.scene import load_scene
+
+    _, out = tiny_runs
+    centre = lambda o: 0.5 * (np.asarray(o["bbox_min"][:2]) + np.asarray(o["bbox_max"][:2]))  # noqa: E731
+    best = None  # the closest pair of same-class objects in the tiny rooms: both in one crop
+    for f in sorted((out["data"] / "scenes").glob("*.npz")):
+        room = load_scene(f)
+        objs = object_table(room)
+        for a in objs:
+            for b in objs:
+                d = np.linalg.norm(centre(a) - centre(b))
+                if a["id"] != b["id"] and a["category"] == b["category"] and (
+                        best is None or d < best[0]):
+                    best = (d, room, objs, a)
+    assert best is not None, "the tiny dataset has no room with two objects of one class"
+    _, room, objs, dup = best
+    others = same_class_others(objs, dup["id"])
+    r = jaxmotion.generate(room, f"walk to the {dup['category']}", object_id=dup["id"],
+                           checkpoints=ckpt, fit=False, **FAST)
+    assert r.excluded == tuple(others) and r.target_id == dup["id"]
+    # the crop's points on those objects, found in the room by exact coordinates
+    inst = {tuple(p): i for p, i in zip(room.xyz.round(5).tolist(), room.instance)}
+    crop_inst = np.array([inst[tuple(p)] for p in r.crop_xyz.round(5).tolist()])
+    on = np.isin(crop_inst, others)
+    assert on.any(), "no class mate in the crop: pick another room"
+    assert np.abs(r.affordance[:, on]).max() <= 1e-6 and r.affordance[:, ~on].max() > 1e-3
+    plain = jaxmotion.generate(room, f"walk to the {dup['category']}", grounding="adm",
+                               checkpoints=ckpt, fit=False, **FAST)
+    assert plain.excluded == ()
+    assert json.loads(jaxmotion.generation.summary(r))["excluded"] == list(others)

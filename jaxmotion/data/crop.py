@@ -91,6 +91,7 @@ def crop_sample(
     mask: np.ndarray,
     target_id: int,
     spec: CropSpec = CropSpec(),
+    centre=None,
 ) -> Crop:
     """Crop one sample. See the module docstring for the recipe.
 
@@ -99,10 +100,18 @@ def crop_sample(
       xyz ``[P,3]``, rgb ``[P,3]`` in [0,1], instance ``[P]``: the whole room.
       joints ``[T,22,3]``, mask ``[T]``: the motion in the world frame.
       target_id: instance id of the target object (its points form ``target_mask``).
+      centre: an xy crop centre chosen elsewhere (e.g. where ``jaxmotion generate`` would
+        put it), replacing steps 1–2; the motion is then not guaranteed to fit in the square.
     """
     mask = np.asarray(mask, bool)
     if not mask.any():
         raise ValueError("crop_sample: the motion has no valid frame (mask is all False)")
+    if centre is not None:
+        try:
+            pick, pts, shift, rot = crop_at(rng, xyz, centre, spec)
+        except ValueError as e:
+            raise ValueError(f"crop_sample: {e}") from None
+        return _crop(rgb, instance, joints, mask, target_id, pick, pts, shift, rot)
     pelvis = joints[mask, 0, :2]
     lo = pelvis.min(0) - spec.margin
     hi = pelvis.max(0) + spec.margin
@@ -124,6 +133,10 @@ def crop_sample(
             f"crop_sample: no scene point within the {spec.size} m square around the motion "
             f"(centre {centre.round(2).tolist()}); is the motion in the scene's frame?"
         ) from None
+    return _crop(rgb, instance, joints, mask, target_id, pick, pts, shift, rot)
+
+
+def _crop(rgb, instance, joints, mask, target_id, pick, pts, shift, rot) -> Crop:
     return Crop(
         points=pts,
         colors=model_colors(rgb[pick]),

@@ -28,13 +28,20 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["region_probe"]
+__all__ = ["case_regions", "region_probe"]
 
 
-def region_probe(data_dir, adm=None, amdm=None, *, split: str = "val", num_cases: int = 200,
-                 grounding: str = "auto", steps: int = 20, guidance: float = 5.0,
-                 seed: int = 0, progress: bool = False) -> dict:
-    """Run the probe (module docstring); returns the rates, the counts and the settings."""
+def case_regions(data_dir, split: str, pipe, *, num_cases: int | None = None,
+                 grounding: str = "auto", sampler=None, seed: int = 0,
+                 progress: bool = False) -> list[dict]:
+    """Where ``jaxmotion generate`` would centre its crop for each of the first ``num_cases``
+    cases of a split, given only the room and the instruction (the very code ``generate``
+    runs: :func:`jaxmotion.generation._find_region` with the pipeline's ADM).
+
+    Returns per case ``centre`` (xy, world), ``chosen`` (object id or None), ``how``
+    (:attr:`jaxmotion.generation.Generation.grounding`), ``target`` (the dataset's target id),
+    ``named`` (how many objects of the named class the room has) and ``has_target`` (the
+    target is among them)."""
     import jax
     from tqdm.auto import tqdm
 
@@ -43,24 +50,22 @@ def region_probe(data_dir, adm=None, amdm=None, *, split: str = "val", num_cases
     from jaxmotion.data.config import CropConfig
     from jaxmotion.data.crop import CropSpec
     from jaxmotion.data.format import load_sample
-    from jaxmotion.sample import AffordancePipeline, SamplerSpec
+    from jaxmotion.sample import SamplerSpec
     from jaxmotion.scene import load_scene
     from jaxmotion.text import load_text_encoder
 
     if grounding not in ("auto", "adm"):
         raise ValueError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
-    default_adm, default_amdm = G.default_checkpoints()
-    pipe = AffordancePipeline.from_workdirs(adm or default_adm, amdm or default_amdm)
     files = sorted((Path(data_dir) / "samples" / split).glob("*.npz"))[:num_cases]
     if not files:
         raise FileNotFoundError(f"{Path(data_dir) / 'samples' / split}: no samples; build a "
                                 "dataset with `jaxmotion synth --out DIR`")
     spec = CropSpec(**{**config_from_dict(CropConfig, pipe.amdm_config["crop"]).__dict__,
                        "rotate": False})
-    sampler = SamplerSpec("ddim", int(steps), guidance=float(guidance))
+    sampler = sampler if sampler is not None else SamplerSpec("ddim", 20, guidance=5.0)
     encoder = load_text_encoder("minilm")
-    rows = []
-    for i, f in enumerate(tqdm(files, desc="region probe", disable=not progress)):
+    out = []
+    for i, f in enumerate(tqdm(files, desc="regions", disable=not progress)):
         s = load_sample(f)
         room = load_scene(Path(data_dir) / "scenes" / f"{s['scene_id']}.npz")
         text, target = str(s["text"]), int(s["target_id"])
@@ -71,10 +76,30 @@ def region_probe(data_dir, adm=None, amdm=None, *, split: str = "val", num_cases
         if pipe.room_view:
             view = G._room_view_maps(room, pipe.adm_config, jax.tree.map(lambda a: a[0], emb),
                                      key, sampler, 1, seed + i, None, "", lambda: pipe)
-        _, chosen, _ = G._find_region(room, text, grounding, spec, view=view,
-                                      adm=(lambda: pipe, emb, key, sampler, seed + i))
-        has = any(o["id"] == target for o in named)
-        rows.append((chosen == target, len(named) > 1, (1.0 / len(named)) if has else 0.0))
+        centre, chosen, how = G._find_region(room, text, grounding, spec, view=view,
+                                             adm=(lambda: pipe, emb, key, sampler, seed + i))
+        out.append({"centre": np.asarray(centre, np.float64), "chosen": chosen, "how": how,
+                    "target": target, "named": len(named),
+                    "has_target": any(o["id"] == target for o in named)})
+    return out
+
+
+def region_probe(data_dir, adm=None, amdm=None, *, split: str = "val", num_cases: int = 200,
+                 grounding: str = "auto", steps: int = 20, guidance: float = 5.0,
+                 seed: int = 0, progress: bool = False) -> dict:
+    """Run the probe (module docstring); returns the rates, the counts and the settings."""
+    import jaxmotion.generation as G
+    from jaxmotion.sample import AffordancePipeline, SamplerSpec
+
+    if grounding not in ("auto", "adm"):
+        raise ValueError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
+    default_adm, default_amdm = G.default_checkpoints()
+    pipe = AffordancePipeline.from_workdirs(adm or default_adm, amdm or default_amdm)
+    regions = case_regions(data_dir, split, pipe, num_cases=num_cases, grounding=grounding,
+                           sampler=SamplerSpec("ddim", int(steps), guidance=float(guidance)),
+                           seed=seed, progress=progress)
+    rows = [(r["chosen"] == r["target"], r["named"] > 1,
+             (1.0 / r["named"]) if r["has_target"] else 0.0) for r in regions]
     hit, multi, chance = (np.array(c, float) for c in zip(*rows, strict=True))
     multi = multi.astype(bool)
     rate = lambda x, m: float(x[m].mean()) if m.any() else float("nan")  # noqa: E731

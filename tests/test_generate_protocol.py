@@ -1,0 +1,160 @@
+"""`jaxmotion eval --protocol generate` (crops where generate puts them) and the ADM's
+``exclude`` (the other objects of the target's class left out of its map)."""
+
+import jax
+import numpy as np
+import pytest
+
+from jaxmotion.eval.runner import ModelSpec, _load_cases, _score_cases, evaluate, format_markdown
+
+
+def _pipe(root):
+    from jaxmotion.sample import AffordancePipeline
+
+    return AffordancePipeline.from_workdirs(root / "adm", root / "amdm")
+
+
+def test_crop_sample_at_a_given_centre():
+    from jaxmotion.data.crop import CropSpec, crop_sample
+
+    rng = np.random.default_rng(0)
+    xyz = rng.uniform([0, 0, 0], [6, 5, 2], (4000, 3)).astype(np.float32)
+    inst = (xyz[:, 0] > 3).astype(np.int32)
+    joints = np.zeros((10, 22, 3), np.float32) + [1.0, 1.0, 0.9]
+    spec = CropSpec(size=2.0, num_points=256, rotate=False)
+    c = crop_sample(rng, xyz, xyz[:, :3] / 6, inst, joints, np.ones(10, bool), 1, spec,
+                    centre=(4.5, 2.5))
+    np.testing.assert_allclose(c.shift[:2], [4.5, 2.5])
+    world = c.to_world(c.points)
+    assert np.all(np.abs(world[:, :2] - [4.5, 2.5]) <= 1.0 + 1e-5)
+    assert c.target_mask.all()  # every point of the square is on object 1 (x > 3)
+    np.testing.assert_allclose(c.to_world(c.joints), joints, atol=1e-5)
+    with pytest.raises(ValueError, match="no scene point"):
+        crop_sample(rng, xyz, xyz, inst, joints, np.ones(10, bool), 1, spec, centre=(40, 40))
+
+
+def test_same_class_others():
+    from jaxmotion.generation import same_class_others
+
+    objects = [{"id": 1, "category": "chair"}, {"id": 2, "category": "chair"},
+               {"id": 3, "category": "table"}, {"id": 4, "category": "chair"}]
+    assert same_class_others(objects, 2) == [1, 4]
+    assert same_class_others(objects, 3) == []
+    assert same_class_others(objects, None) == [] and same_class_others(objects, 9) == []
+
+
+def test_exclude_keeps_the_map_off_those_points(tiny_runs):
+    from jaxmotion.sample import SamplerSpec, load_cases
+
+    root, out = tiny_runs
+    pipe = _pipe(root)
+    cases, _ = load_cases(out["data"], "test", pipe.amdm_config, num_cases=2)
+    pts = np.stack([c["points"] for c in cases])
+    col = np.stack([c["colors"] for c in cases])
+    emb = pipe.embed_text([c["text"] for c in cases])
+    spec, key = SamplerSpec("ddim", 3), jax.random.key(4)
+    free = np.asarray(pipe.sample_affordance(key, pts, col, emb, spec))
+    none = np.asarray(pipe.sample_affordance(key, pts, col, emb, spec,
+                                             np.zeros(pts.shape[:2], bool)))
+    np.testing.assert_array_equal(free, none)  # nothing excluded: the same maps
+    ex = np.zeros(pts.shape[:2], bool)
+    ex[:, ::3] = True
+    got = np.asarray(pipe.sample_affordance(key, pts, col, emb, spec, ex))
+    assert np.abs(got[ex]).max() <= 1e-6 and free[ex].max() > 1e-3
+    assert not np.allclose(got[~ex], free[~ex])  # the rest is sampled around the hole
+    with pytest.raises(ValueError, match="exclude must be"):
+        pipe.sample_affordance(key, pts, col, emb, spec, ex[:, :10])
+    view = {"points": pts, "colors": col, "in_crop": pts}
+    with pytest.raises(ValueError, match="leave exclude out"):
+        pipe.sample(key, pts, col, emb, np.stack([c["mask"] for c in cases]), adm=spec,
+                    amdm=spec, view=view, exclude=ex)
+
+
+def test_generate_protocol_cases(tiny_runs):
+    """Crops centred where generate would put them, goal points from the whole room, and
+    the exclusion mask on the other objects of the chosen object's class."""
+    import jaxmotion.generation as G
+    from jaxmotion.data.format import load_sample
+    from jaxmotion.eval.region_probe import case_regions
+    from jaxmotion.sample import SamplerSpec
+    from jaxmotion.scene import load_scene
+
+    root, out = tiny_runs
+    pipe = _pipe(root)
+    regions = case_regions(out["data"], "test", pipe, num_cases=6, sampler=SamplerSpec("ddim", 2))
+    cases = _load_cases(out["data"], "test", pipe.amdm_config, 6, 0, regions, exclude=True)
+    assert len(cases) == len(regions) >= 2  # the tiny test split has 4 cases
+    for c, r in zip(cases, regions, strict=True):
+        s = load_sample(out["data"] / "samples" / "test" / c["file"])
+        room = load_scene(out["data"] / "scenes" / f"{s['scene_id']}.npz")
+        assert r["target"] == int(s["target_id"]) and r["chosen"] == r["target"]
+        np.testing.assert_allclose(c["shift"][:2], r["centre"], atol=1e-5)
+        lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
+        obj = G._object(room, r["chosen"])
+        np.testing.assert_allclose(r["centre"], G._object_centre(obj, lo, hi, 4.0))
+        # goal points: the target's points of the room, in the crop frame
+        world = c["goal_points"] @ c["rotation"] + c["shift"]
+        on = room.xyz[room.instance == r["target"]]
+        d = np.sqrt(((world[:, None] - on[None]) ** 2).sum(-1)).min(1)
+        assert d.max() < 1e-4 and len(world) == len(c["points"])
+        others = G.same_class_others(G.object_table(room), r["chosen"])
+        np.testing.assert_array_equal(c["exclude"], np.isin(c["instance"], others))
+        assert not (c["exclude"] & c["target_mask"]).any()
+    with pytest.raises(ValueError, match="crop centres for"):
+        from jaxmotion.sample import load_cases
+
+        load_cases(out["data"], "test", pipe.amdm_config, num_cases=3, centres=[(0, 0)])
+
+
+def test_a_target_outside_the_crop_scores_its_true_distance():
+    """Generate protocol: a region without the target gives the goal distance to the
+    target's points elsewhere in the room (not a missing value) and instance success 0."""
+    from jaxmotion.eval.joint_spheres import joints_goal_distance
+    from jaxmotion.eval.runner import _physical_fn
+
+    rng = np.random.default_rng(1)
+    n, t = 256, 8
+    points = rng.uniform([-2, -2, 0], [2, 2, 1], (n, 3)).astype(np.float32)
+    goal = (rng.uniform([0, 0, 0], [0.4, 0.4, 0.5], (n, 3)) + [3.0, 0, 0]).astype(np.float32)
+    joints = np.broadcast_to(rng.uniform(-0.3, 0.3, (1, 22, 3)) + [0, 0, 0.9],
+                             (1, t, 22, 3)).astype(np.float32)
+    cls = np.zeros(n, bool)
+    cls[:20] = True
+    case = dict(points=points, goal_points=goal, target_mask=np.zeros(n, bool),
+                target_class_mask=cls, mask=np.ones(t, bool), action="sit")
+    affs = [[np.full((n, 6), 0.5, np.float32)]]
+    rows = _score_cases([case], joints[None], affs, _physical_fn(False, 30.0), False, 30.0,
+                        [], None)
+    want = float(joints_goal_distance(goal, joints[0, -1]))
+    assert want > 2.0 and rows[0]["goal_distance"] == pytest.approx(want, rel=1e-5)
+    assert rows[0]["instance_success@0.3"] == 0.0 and "success@0.3" in rows[0]
+
+
+def test_runner_generate_protocol(tiny_runs, tmp_path):
+    from jaxmotion.cli import main
+
+    root, out = tiny_runs
+    spec = [ModelSpec("two", str(root / "adm"), str(root / "amdm"), "ddim", 2)]
+    kw = dict(num_cases=3, samples=2, replications=1, body=False, batch_size=4, progress=False)
+    rep = evaluate(out["data"], spec, protocol="generate", **kw)
+    m = rep["models"]["two"]
+    assert rep["settings"]["protocol"] == "generate" and rep["settings"]["grounding"] == "auto"
+    assert m["regions"]["hit"] == 1.0 and sum(m["regions"]["how"].values()) == 3
+    s = m["summary"]
+    for k in ("goal_distance", "contact", "non_collision", "instance_success@0.3"):
+        assert np.isfinite(s[k]["mean"]), k
+    md = format_markdown(rep)
+    assert "Protocol **generate**" in md and "region centred on the target in 100.0 %" in md
+    paper = evaluate(out["data"], spec, **kw)
+    assert paper["settings"]["protocol"] == "paper" and "regions" not in paper["models"]["two"]
+    assert "Protocol" not in format_markdown(paper)
+    with pytest.raises(ValueError, match="protocol must be"):
+        evaluate(out["data"], spec, protocol="room", **kw)
+    with pytest.raises(ValueError, match="grounding must be"):
+        evaluate(out["data"], spec, protocol="generate", grounding="graph", **kw)
+    args = ["eval", "--data", str(out["data"]), "--model",
+            f"two={root / 'adm'},{root / 'amdm'},ddim2", "--cases", "2", "--samples", "1",
+            "--replications", "1", "--joints-only", "--protocol", "generate", "--grounding",
+            "adm", "--out", str(tmp_path)]
+    assert main(args) == 0
+    assert "grounding `adm`" in (tmp_path / "results.md").read_text()

@@ -10,6 +10,7 @@ Prints wall-clock seconds of the whole process (import, load, sampling, body fit
 every output) and the per-stage split reported by the command itself.
 
     python benchmarks/generate.py [--runs 3] [--steps 20] [--video gif|mp4|none] [--consistency S]
+        [--adm-candidates C]
 """
 
 from __future__ import annotations
@@ -33,6 +34,8 @@ def run_once(cache: str, out: str, args) -> tuple[float, dict]:
         cmd += ["--checkpoints", *args.checkpoints]
     if args.consistency is not None:
         cmd += ["--consistency", str(args.consistency)]
+    if args.adm_candidates is not None:
+        cmd += ["--adm-candidates", str(args.adm_candidates)]
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
@@ -51,11 +54,14 @@ def main():
     ap.add_argument("--checkpoints", nargs="+", default=None)
     ap.add_argument("--consistency", type=float, default=None,
                     help="consistency-guidance strength (default: the command's; 0 = off)")
+    ap.add_argument("--adm-candidates", type=int, default=None,
+                    help="ADM maps per sample for a known target (default: the command's)")
     args = ap.parse_args()
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}")
     print(f"jaxmotion generate --scene demo --steps {args.steps} --samples {args.samples} "
           f"--video {args.video}"
-          + ("" if args.consistency is None else f" --consistency {args.consistency:g}"))
+          + ("" if args.consistency is None else f" --consistency {args.consistency:g}")
+          + ("" if args.adm_candidates is None else f" --adm-candidates {args.adm_candidates}"))
     with tempfile.TemporaryDirectory() as tmp:
         cache, out = os.path.join(tmp, "cache"), os.path.join(tmp, "out")
         cold, cold_st = run_once(cache, out, args)

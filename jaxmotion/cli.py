@@ -145,7 +145,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     res = generate(args.scene, args.text, object_id=args.object, samples=args.samples,
                    seed=args.seed, steps=args.steps, guidance=args.guidance,
                    consistency=args.consistency, grounding=args.grounding,
-                   checkpoints=ckpt, num_points=args.points, progress=True)
+                   adm_candidates=args.adm_candidates, checkpoints=ckpt, num_points=args.points, progress=True)
     t1 = time.perf_counter()
     files = res.save(args.out, video=None if args.video == "none" else args.video)
     res.timings["write"] = time.perf_counter() - t1
@@ -284,6 +284,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "door') narrows the named objects by the room's geometry before the ADM "
                    "chooses (needs an object table: synthetic rooms, labelled scans); adm: the "
                    "ADM's map alone")
+    p.add_argument("--adm-candidates", type=int, default=None, metavar="C",
+                   help="once the target object is known (--object, or found from the text), "
+                   "draw C affordance maps per sample and keep the one that lights it most "
+                   "(default: the tuned value; 1 = one map)")
     p.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
     p.add_argument("--checkpoints", nargs="+", default=None, metavar="PATH",
                    help="a folder with adm.safetensors and amdm.safetensors, or the ADM and "

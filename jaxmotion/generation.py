@@ -85,6 +85,9 @@ DEFAULT_GUIDANCE: tuple[float, float] = (5.0, 1.0)
 #: :mod:`jaxmotion.diffusion.affordance_guidance`), chosen on the validation split
 #: (docs/results.md, "Consistency guidance").
 DEFAULT_CONSISTENCY: float = 0.5
+#: ADM maps drawn per sample once the target object is known; the one lighting it most is
+#: kept (docs/results.md, "The generate protocol").
+DEFAULT_ADM_CANDIDATES: int = 1
 DEMO_SEED = 22  # a dining room (L-shaped, 4.3 x 6.0 m) with one table and one chair by it
 DEMO_POINTS = 60_000
 OUTPUT_FILES = ("motion.npz", "motion.bvh", "motion.glb", "motion.gif", "viewer.html")
@@ -534,6 +537,7 @@ def generate(
     guidance: float | tuple[float, float] | None = None,
     consistency: float | None = None,
     grounding: str = "auto",
+    adm_candidates: int | None = None,
     checkpoints=None,
     num_points: int | None = None,
     fit: bool = True,
@@ -557,6 +561,10 @@ def generate(
       grounding: ``auto``: a relation in the text ("closest to the door") narrows the named
         objects by the scene's geometry before the ADM chooses; ``adm``: the ADM alone
         (module docstring, step 2).
+      adm_candidates: once the target object is known (``object_id``, or chosen from the
+        text), the ADM draws this many maps per sample and the one that lights the target
+        most is kept (step 3); 1 = one map; None: :data:`DEFAULT_ADM_CANDIDATES`. Costs one
+        more ADM pass per candidate.
       checkpoints: None (shipped), a folder with ``adm.safetensors`` / ``amdm.safetensors``, or
         an ``(adm, amdm)`` pair of workdirs / files.
       num_points: surface samples taken from a mesh (default 100k); point clouds keep theirs.
@@ -592,6 +600,11 @@ def generate(
             raise GenerateError(f"{name} must be an integer ≥ {lo}, got {v!r}")
     if samples > 256:
         raise GenerateError(f"samples={samples} is more than 256; generate in several calls")
+    adm_candidates = DEFAULT_ADM_CANDIDATES if adm_candidates is None else adm_candidates
+    if not isinstance(adm_candidates, (int, np.integer)) or isinstance(adm_candidates, bool) \
+            or not 1 <= adm_candidates <= 16:
+        raise GenerateError(f"adm_candidates must be an integer in [1, 16], got "
+                            f"{adm_candidates!r}")
     if grounding not in ("auto", "adm"):
         raise GenerateError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
     adm_file, amdm_file = _resolve_checkpoints(checkpoints)
@@ -652,6 +665,7 @@ def generate(
     excluded = (same_class_others(object_table(room), chosen)
                 if object_id is not None or grounding == "auto" else [])
     exclude = np.isin(room.instance[pick], excluded)
+    n_cand = int(adm_candidates) if chosen is not None and not room_view else 1
 
     args = (np.asarray(jax.random.key_data(k_main)), tile(pts), tile(colors),
             jax.tree.map(lambda a: tile(a[0]), emb), np.ones((k, t_frames), bool))
@@ -667,14 +681,14 @@ def generate(
         if room_view:
             return lambda kd, p, c, e, m, a: pipe.sample(jax.random.wrap_key_data(kd), p, c, e,
                                                          m, amdm=amdm_sampler, affordance=a)
-        return lambda kd, p, c, e, m, x: pipe.sample(jax.random.wrap_key_data(kd), p, c, e, m,
-                                                     adm=adm_sampler, amdm=amdm_sampler,
-                                                     exclude=x)
+        return lambda kd, p, c, e, m, x, t: pipe.sample(
+            jax.random.wrap_key_data(kd), p, c, e, m, adm=adm_sampler, amdm=amdm_sampler,
+            exclude=x, target=t, candidates=n_cand)
 
     if not room_view:
-        args = (*args, tile(exclude))
-    res = _aot_call(aot_dir, "sample", _digest(versions, adm_sampler, amdm_sampler, Path(adm_file),
-                                              Path(amdm_file)),
+        args = (*args, tile(exclude), tile(room.instance[pick] == (chosen if n_cand > 1 else -2)))
+    res = _aot_call(aot_dir, "sample", _digest(versions, adm_sampler, amdm_sampler, n_cand,
+                                              Path(adm_file), Path(amdm_file)),
                     build_sampler, args)
     res = jax.device_get(res)
     joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)

@@ -266,7 +266,8 @@ class AffordancePipeline:
         return self._jitted[1](spec, keys, points, scene_feat, text_emb, mask)
 
     def sample(self, key, points, colors, text_emb, mask, *, adm=SamplerSpec(steps=50),
-               amdm=SamplerSpec(steps=50), affordance=None, view=None, exclude=None) -> dict:
+               amdm=SamplerSpec(steps=50), affordance=None, view=None, exclude=None,
+               target=None, candidates: int = 1) -> dict:
         """Both stages: affordance from scene + text, then motion from affordance + text.
 
         ``affordance``: maps ``[B,N,6]`` in [0, 1] to use instead of sampling the ADM (e.g. the
@@ -275,8 +276,14 @@ class AffordancePipeline:
         [B,M,3], "in_crop" [B,M,3]}``: the ADM's input in its own frame, and the same points
         in the crop frame; the ADM's map on them (returned as ``view_affordance``) is carried
         to the crop's points. ``exclude``: ``[B,N]`` crop points the ADM's map must leave out
-        (:meth:`sample_affordance`; not with ``view``)."""
+        (:meth:`sample_affordance`; not with ``view``). ``target`` ``[B,N]`` bool, the points of
+        a known target object, and ``candidates`` C > 1: the ADM draws C maps per example and
+        keeps the one that lights the target most (:meth:`best_of`)."""
         ka, km = jax.random.split(key)
+        if candidates > 1 and (target is None or view is not None or affordance is not None):
+            raise ValueError("candidates > 1 picks among the ADM's maps on the crop by how much "
+                             "they light a known target: pass target=[B, N] points of it (and "
+                             "no view or affordance), or candidates=1")
         if exclude is not None and view is not None:
             raise ValueError("exclude applies to an ADM on the crop; a room-view ADM's map is "
                              "carried from its view: leave exclude out")
@@ -295,8 +302,29 @@ class AffordancePipeline:
                                  "view={'points', 'colors', 'in_crop'} (load_cases and "
                                  "case_inputs build it), or maps as affordance=")
             aff = self.sample_affordance(ka, points, colors, text_emb, adm, exclude)
+            if candidates > 1:
+                aff = self.best_of(ka, aff, points, colors, text_emb, adm, exclude, target,
+                                   candidates)
         return {**out, "affordance": aff,
                 "joints": self.sample_motion(km, points, aff, text_emb, mask, amdm)}
+
+    def best_of(self, key, first, points, colors, text_emb, spec, exclude, target,
+                candidates: int):
+        """Of ``candidates`` ADM maps per example (``first`` ``[B,N,6]``, drawn with ``key``,
+        and ``candidates − 1`` more drawn with ``fold_in(key, 1)``), the one that lights
+        ``target`` ``[B,N]`` most: the largest mean over its points of the strongest channel
+        (the score generate's region choice uses). An example with no target point keeps
+        ``first``."""
+        b, m = points.shape[0], int(candidates) - 1
+        rep = lambda x: jax.tree.map(lambda a: jnp.repeat(jnp.asarray(a), m, axis=0), x)  # noqa: E731
+        more = self.sample_affordance(jax.random.fold_in(key, 1), rep(points), rep(colors),
+                                      rep(text_emb), spec,
+                                      None if exclude is None else rep(exclude))
+        maps = jnp.concatenate([first[:, None], more.reshape(b, m, *first.shape[1:])], axis=1)
+        t = jnp.asarray(target, jnp.float32)[:, None]  # [B,1,N]
+        score = (maps.max(-1) * t).sum(-1) / jnp.maximum(t.sum(-1), 1.0)  # [B,C]
+        best = jnp.argmax(score, axis=1)  # ties (no target): the first
+        return jnp.take_along_axis(maps, best[:, None, None, None], axis=1)[:, 0]
 
     @staticmethod
     @jax.jit

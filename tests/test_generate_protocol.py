@@ -158,3 +158,61 @@ def test_runner_generate_protocol(tiny_runs, tmp_path):
             "adm", "--out", str(tmp_path)]
     assert main(args) == 0
     assert "grounding `adm`" in (tmp_path / "results.md").read_text()
+
+
+def test_best_of_keeps_the_map_that_lights_the_target(tiny_runs):
+    from jaxmotion.sample import SamplerSpec, load_cases
+
+    root, out = tiny_runs
+    pipe = _pipe(root)
+    cases, _ = load_cases(out["data"], "test", pipe.amdm_config, num_cases=2)
+    pts = np.stack([c["points"] for c in cases])
+    col = np.stack([c["colors"] for c in cases])
+    emb = pipe.embed_text([c["text"] for c in cases])
+    spec, key = SamplerSpec("ddim", 3), jax.random.key(5)
+    target = np.stack([c["target_mask"] for c in cases])
+    first = np.asarray(pipe.sample_affordance(key, pts, col, emb, spec))
+    got = np.asarray(pipe.best_of(key, first, pts, col, emb, spec, None, target, 3))
+    # brute force: the two extra maps of each example, drawn as best_of draws them
+    rep = lambda a: np.repeat(np.asarray(a), 2, axis=0)  # noqa: E731
+    more = np.asarray(pipe.sample_affordance(jax.random.fold_in(key, 1), rep(pts), rep(col),
+                                             jax.tree.map(rep, emb), spec)).reshape(2, 2, -1, 6)
+    for b in range(2):
+        maps = [first[b], more[b, 0], more[b, 1]]
+        scores = [m.max(-1)[target[b]].mean() for m in maps]
+        np.testing.assert_allclose(got[b], maps[int(np.argmax(scores))], atol=1e-6)
+    none = np.asarray(pipe.best_of(key, first, pts, col, emb, spec, None,
+                                   np.zeros_like(target), 3))
+    np.testing.assert_array_equal(none, first)  # no target: the first map
+    mask = np.stack([c["mask"] for c in cases])
+    with pytest.raises(ValueError, match="known target"):
+        pipe.sample(key, pts, col, emb, mask, adm=spec, amdm=spec, candidates=2)
+
+
+def test_adm_candidates_in_eval_and_generate(tiny_runs):
+    import jaxmotion
+    from jaxmotion.eval.runner import parse_model
+    from jaxmotion.generation import GenerateError
+
+    root, out = tiny_runs
+    m = parse_model("c=x,y,ddim4,adm_candidates=3")
+    assert m.adm_candidates == 3 and m.sampler_label == "DDIM-4 (best of 3 ADM maps)"
+    for bad in ("c=x,y,adm_candidates=0", "c=x,y,adm_candidates=two"):
+        with pytest.raises(ValueError, match="adm_candidates must be"):
+            parse_model(bad)
+    spec = [ModelSpec("c", str(root / "adm"), str(root / "amdm"), "ddim", 2, adm_candidates=2)]
+    kw = dict(num_cases=2, samples=1, replications=1, body=False, batch_size=4, progress=False)
+    with pytest.raises(ValueError, match="needs --protocol generate"):
+        evaluate(out["data"], spec, **kw)
+    rep = evaluate(out["data"], spec, protocol="generate", **kw)
+    assert np.isfinite(rep["models"]["c"]["summary"]["goal_distance"]["mean"])
+    ckpt = (str(root / "adm"), str(root / "amdm"))
+    scene = jaxmotion.generation.demo_scene()
+    chair = next(o for o in scene.objects if o["category"] == "chair")
+    fast = dict(checkpoints=ckpt, fit=False, steps=2, seed=1)
+    a = jaxmotion.generate(scene, "sit down", object_id=chair["id"], adm_candidates=3, **fast)
+    b = jaxmotion.generate(scene, "sit down", object_id=chair["id"], adm_candidates=3, **fast)
+    np.testing.assert_array_equal(a.joints, b.joints)
+    for bad in (0, 17, 2.5):
+        with pytest.raises(GenerateError, match="adm_candidates must be"):
+            jaxmotion.generate(scene, "sit down", adm_candidates=bad, **fast)

@@ -69,6 +69,7 @@ class ModelSpec:
     amdm_guidance: float = 1.0
     affordance: str = "adm"  # "gt": the AMDM gets ground-truth maps (an oracle row)
     consistency: float = 0.0  # affordance-consistency guidance strength of the AMDM (0 = off)
+    adm_candidates: int = 1  # ADM maps per sample; the one lighting the known target is kept
 
     @property
     def sampler_label(self) -> str:
@@ -79,12 +80,16 @@ class ModelSpec:
             guided.append(f"consistency {self.consistency:g}")
         if self.affordance == "gt":
             guided.append("ground-truth maps")
+        if self.adm_candidates > 1:
+            guided.append(f"best of {self.adm_candidates} ADM maps")
         return label + (f" ({', '.join(guided)})" if guided else "")
 
 
 def parse_model(text: str) -> ModelSpec:
     """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,consistency=S]
-    [,affordance=adm|gt]`` → :class:`ModelSpec` (the ``--model`` syntax). ``consistency``: the
+    [,affordance=adm|gt][,adm_candidates=C]`` → :class:`ModelSpec` (the ``--model`` syntax).
+    ``adm_candidates`` (generate protocol only): C ADM maps per sample, the one lighting the
+    region's object most is kept, as ``jaxmotion generate --adm-candidates``. ``consistency``: the
     strength in [0, 1] of affordance-consistency guidance on the AMDM (0, the default, = off).
     ``affordance=gt`` feeds the AMDM the ground-truth affordance maps instead of the ADM's: the
     row then measures the AMDM alone."""
@@ -109,9 +114,15 @@ def parse_model(text: str) -> ModelSpec:
             raise ValueError(f"--model {text!r}: sampler {positional[2]!r} is not ddimN (N > 0) "
                              "or ddpm")
     guidance = {"adm_guidance": 1.0, "amdm_guidance": 1.0}
-    affordance, consistency = "adm", 0.0
+    affordance, consistency, candidates = "adm", 0.0, 1
     for opt in options:
         key, _, value = opt.partition("=")
+        if key == "adm_candidates":
+            if not value.isdigit() or int(value) < 1:
+                raise ValueError(f"--model {text!r}: adm_candidates must be an integer ≥ 1, "
+                                 f"got {value!r}")
+            candidates = int(value)
+            continue
         if key == "consistency":
             try:
                 consistency = float(value)
@@ -129,7 +140,8 @@ def parse_model(text: str) -> ModelSpec:
             continue
         if key not in guidance:
             raise ValueError(f"--model {text!r}: unknown option {key!r}; valid: "
-                             + ", ".join([*guidance, "consistency", "affordance"]))
+                             + ", ".join([*guidance, "consistency", "affordance",
+                                          "adm_candidates"]))
         try:
             guidance[key] = float(value)
         except ValueError:
@@ -137,7 +149,7 @@ def parse_model(text: str) -> ModelSpec:
         if not guidance[key] > 0:
             raise ValueError(f"--model {text!r}: {key} must be > 0 (1 = no guidance)")
     return ModelSpec(name, positional[0], positional[1], method, steps, **guidance,
-                     affordance=affordance, consistency=consistency)
+                     affordance=affordance, consistency=consistency, adm_candidates=candidates)
 
 
 # --------------------------------------------------------------------------- per case
@@ -311,6 +323,10 @@ def evaluate(
                                    consistency=spec.consistency)
         two_stage = pipe.amdm.cfg.scene_input == "affordance"
         oracle = spec.affordance == "gt"
+        if spec.adm_candidates > 1 and (protocol != "generate" or oracle or pipe.room_view):
+            raise ValueError(f"--model {spec.name!r}: adm_candidates picks the ADM map that "
+                             "lights the object generate's region was centred on; it needs "
+                             "--protocol generate and a crop-view ADM (not affordance=gt)")
         if oracle:
             if not two_stage:
                 raise ValueError(f"--model {spec.name!r}: affordance=gt needs an AMDM that reads "
@@ -334,7 +350,9 @@ def evaluate(
                     jax.random.fold_in(key, start), x["points"], x["colors"], take_text(emb, idx),
                     x["mask"], adm=adm_sampler, amdm=amdm_sampler,
                     affordance=gt_maps[idx] if oracle else None, view=x["view"],
-                    exclude=x["exclude"]))
+                    exclude=x["exclude"], candidates=spec.adm_candidates,
+                    target=None if regions is None else np.stack(
+                        [cases[i]["chosen_mask"] for i in idx])))
                 for j, (ci, k) in enumerate(chunk):
                     joints[ci, k] = res["joints"][j]
                     if two_stage:
@@ -408,6 +426,8 @@ def _load_cases(data_dir, split, amdm_config, num_cases, seed, regions, adm_conf
             pick = rng.choice(on, len(c["points"]), replace=len(on) < len(c["points"]))
             world = sc["xyz"][pick]
         c["goal_points"] = ((world - c["shift"]) @ c["rotation"].T).astype(np.float32)
+        c["chosen_mask"] = c["instance"] == (-2 if regions[i]["chosen"] is None
+                                             else regions[i]["chosen"])
         if exclude:
             from jaxmotion.generation import same_class_others
 

@@ -128,6 +128,10 @@ def test_a_target_outside_the_crop_scores_its_true_distance():
     want = float(joints_goal_distance(goal, joints[0, -1]))
     assert want > 2.0 and rows[0]["goal_distance"] == pytest.approx(want, rel=1e-5)
     assert rows[0]["instance_success@0.3"] == 0.0 and "success@0.3" in rows[0]
+    # no object of the class in the crop either: still a miss, no class columns
+    rows = _score_cases([{**case, "target_class_mask": np.zeros(n, bool)}], joints[None], affs,
+                        _physical_fn(False, 30.0), False, 30.0, [], None)
+    assert rows[0]["instance_success@0.3"] == 0.0 and "success@0.3" not in rows[0]
 
 
 def test_runner_generate_protocol(tiny_runs, tmp_path):

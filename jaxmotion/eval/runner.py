@@ -225,9 +225,11 @@ def _score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: 
         # the paper's definition: the target mask holds every point of the target's class
         class_mask = c.get("target_class_mask", c["target_mask"])
         outside = "goal_points" in c and not c["target_mask"].any()
-        if affs is not None and (c["target_mask"].any() or (outside and class_mask.any())):
-            g = [jax.device_get(affordance_grounding_from_map(a, class_mask)) for a in affs[ci]]
-            row.update({k: float(np.mean([x[k] for x in g])) for k in GROUNDING})
+        if affs is not None and (c["target_mask"].any() or outside):
+            if class_mask.any():
+                g = [jax.device_get(affordance_grounding_from_map(a, class_mask))
+                     for a in affs[ci]]
+                row.update({k: float(np.mean([x[k] for x in g])) for k in GROUNDING})
             # stricter: only the target instance's points count (0 when it is not in the crop)
             g = [jax.device_get(affordance_grounding_from_map(a, c["target_mask"]))
                  for a in affs[ci]] if not outside else [{"success@0.3": 0.0}]

@@ -145,7 +145,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     res = generate(args.scene, args.text, object_id=args.object, samples=args.samples,
                    seed=args.seed, steps=args.steps, guidance=args.guidance,
                    consistency=args.consistency, grounding=args.grounding,
-                   adm_candidates=args.adm_candidates, checkpoints=ckpt, num_points=args.points, progress=True)
+                   adm_candidates=args.adm_candidates, checkpoints=ckpt,
+                   num_points=args.points, progress=True)
     t1 = time.perf_counter()
     files = res.save(args.out, video=None if args.video == "none" else args.video)
     res.timings["write"] = time.perf_counter() - t1

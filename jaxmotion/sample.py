@@ -229,10 +229,7 @@ class AffordancePipeline:
     # -- batched, jitted entry points --------------------------------------------------------
     @functools.cached_property
     def _jitted(self):
-        def aff(spec, keys, points, colors, text, exclude):
-            if exclude is None:
-                return jax.vmap(lambda k, p, c, e: self._affordance_one(k, p, c, e, spec))(
-                    keys, points, colors, text)
+        def aff(spec, keys, points, colors, text, exclude):  # exclude may be None
             return jax.vmap(lambda k, p, c, e, x: self._affordance_one(k, p, c, e, spec, x))(
                 keys, points, colors, text, exclude)
 
@@ -350,7 +347,13 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
     semantic class, as the grounding metrics of the paper use; the instance when the scene
     has no semantic labels), ``instance`` (the crop points' instance ids), ``objects`` (the
     room's object table, a list of dicts, empty when the scene has none), ``rotation``,
-    ``shift`` (``x_world = x_crop @ rotation + shift``), ``file``."""
+    ``shift`` (``x_world = x_crop @ rotation + shift``), ``file``.
+
+    ``centres``: one xy crop centre per case (world frame) replacing the crop's placement
+    around the motion, e.g. where ``jaxmotion generate`` would crop
+    (:func:`jaxmotion.eval.region_probe.case_regions`). The crop may then miss the target, so
+    each case also gets ``goal_points``: as many of the target's points in the whole room as
+    the crop has points, in the crop frame."""
     import json
 
     from jaxmotion.config import config_from_dict
@@ -394,6 +397,15 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
         mask[:t] = s["mask"][:t]
         gt = np.zeros((max_frames, 22, 3), np.float32)
         gt[:t] = c.joints[:t]
+        goal = {}
+        if centres is not None:
+            on = np.flatnonzero(on_target)
+            if len(on) == 0:
+                raise ValueError(f"{f.name}: the target object {int(s['target_id'])} has no "
+                                 "point in its scene; rebuild the dataset")
+            n = len(c.points)
+            pick = np.random.default_rng([seed, i, 2]).choice(on, n, replace=len(on) < n)
+            goal["goal_points"] = ((xyz[pick] - c.shift) @ c.rotation.T).astype(np.float32)
         view = None
         if view_spec is not None:
             v = crop_sample(np.random.default_rng([seed, i, 1]), xyz, rgb, inst, s["joints"],
@@ -406,7 +418,7 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
                           colors=c.colors, mask=mask, gt=gt, target_mask=c.target_mask,
                           target_class_mask=class_mask, instance=inst[c.indices],
                           objects=objects, rotation=c.rotation, shift=c.shift, file=f.name,
-                          view=view))
+                          view=view, **goal))
     return cases, spec
 
 

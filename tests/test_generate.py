@@ -292,7 +292,9 @@ def test_known_target_keeps_the_map_off_its_class_mates(tiny_runs, ckpt):
     from jaxmotion.scene import load_scene
 
     _, out = tiny_runs
-    centre = lambda o: 0.5 * (np.asarray(o["bbox_min"][:2]) + np.asarray(o["bbox_max"][:2]))  # noqa: E731
+    def centre(o):
+        return 0.5 * (np.asarray(o["bbox_min"][:2]) + np.asarray(o["bbox_max"][:2]))
+
     best = None  # the closest pair of same-class objects in the tiny rooms: both in one crop
     for f in sorted((out["data"] / "scenes").glob("*.npz")):
         room = load_scene(f)

@@ -43,15 +43,22 @@ def test_same_class_others():
     assert same_class_others(objects, None) == [] and same_class_others(objects, 9) == []
 
 
-def test_exclude_keeps_the_map_off_those_points(tiny_runs):
-    from jaxmotion.sample import SamplerSpec, load_cases
+def _two_cases(tiny_runs):
+    """The pipeline, two test cases and their stacked points, colours and text."""
+    from jaxmotion.sample import case_inputs, load_cases
 
     root, out = tiny_runs
     pipe = _pipe(root)
     cases, _ = load_cases(out["data"], "test", pipe.amdm_config, num_cases=2)
-    pts = np.stack([c["points"] for c in cases])
-    col = np.stack([c["colors"] for c in cases])
-    emb = pipe.embed_text([c["text"] for c in cases])
+    x = case_inputs(cases, [0, 1])
+    return pipe, cases, x, pipe.embed_text([c["text"] for c in cases])
+
+
+def test_exclude_keeps_the_map_off_those_points(tiny_runs):
+    from jaxmotion.sample import SamplerSpec
+
+    pipe, cases, x, emb = _two_cases(tiny_runs)
+    pts, col = x["points"], x["colors"]
     spec, key = SamplerSpec("ddim", 3), jax.random.key(4)
     free = np.asarray(pipe.sample_affordance(key, pts, col, emb, spec))
     none = np.asarray(pipe.sample_affordance(key, pts, col, emb, spec,
@@ -66,7 +73,7 @@ def test_exclude_keeps_the_map_off_those_points(tiny_runs):
         pipe.sample_affordance(key, pts, col, emb, spec, ex[:, :10])
     view = {"points": pts, "colors": col, "in_crop": pts}
     with pytest.raises(ValueError, match="leave exclude out"):
-        pipe.sample(key, pts, col, emb, np.stack([c["mask"] for c in cases]), adm=spec,
+        pipe.sample(key, pts, col, emb, x["mask"], adm=spec,
                     amdm=spec, view=view, exclude=ex)
 
 
@@ -165,14 +172,10 @@ def test_runner_generate_protocol(tiny_runs, tmp_path):
 
 
 def test_best_of_keeps_the_map_that_lights_the_target(tiny_runs):
-    from jaxmotion.sample import SamplerSpec, load_cases
+    from jaxmotion.sample import SamplerSpec
 
-    root, out = tiny_runs
-    pipe = _pipe(root)
-    cases, _ = load_cases(out["data"], "test", pipe.amdm_config, num_cases=2)
-    pts = np.stack([c["points"] for c in cases])
-    col = np.stack([c["colors"] for c in cases])
-    emb = pipe.embed_text([c["text"] for c in cases])
+    pipe, cases, x, emb = _two_cases(tiny_runs)
+    pts, col = x["points"], x["colors"]
     spec, key = SamplerSpec("ddim", 3), jax.random.key(5)
     target = np.stack([c["target_mask"] for c in cases])
     first = np.asarray(pipe.sample_affordance(key, pts, col, emb, spec))
@@ -188,7 +191,7 @@ def test_best_of_keeps_the_map_that_lights_the_target(tiny_runs):
     none = np.asarray(pipe.best_of(key, first, pts, col, emb, spec, None,
                                    np.zeros_like(target), 3))
     np.testing.assert_array_equal(none, first)  # no target: the first map
-    mask = np.stack([c["mask"] for c in cases])
+    mask = x["mask"]
     with pytest.raises(ValueError, match="known target"):
         pipe.sample(key, pts, col, emb, mask, adm=spec, amdm=spec, candidates=2)
 

@@ -27,7 +27,7 @@ alone (:func:`jaxmotion.eval.region_probe.case_regions`: the named objects, narr
 scene graph with ``grounding="auto"``, then the ADM among what is left); the goal distance is
 then measured against the target's points in the whole room (a wrong region is a long
 distance, not a missing value), the instance success is 0 when the target is outside the crop,
-and ``region_hit`` is the fraction of cases whose region is centred on the target.
+and each model's ``regions`` say how often the region was centred on the target.
 
 A row with ``affordance=gt`` feeds the AMDM the ground-truth affordance maps (from the
 dataset's motion) instead of the ADM's, with the same motion noise as the ADM row: the gap
@@ -270,8 +270,8 @@ def evaluate(
 ) -> dict:
     """Evaluate ``models`` on the first ``num_cases`` cases of ``split``; see the module
     docstring (``protocol``: ``paper`` or ``generate``; ``grounding``: how the generate
-    protocol finds the region, ``auto`` or ``adm``, as ``jaxmotion generate --grounding``). Returns a JSON-ready dict: settings, and per model its sampler, per-replication
-    metrics and ``summary`` ``{metric: {mean, ci95, n}}``. With ``ground_truth`` the dataset's
+    protocol finds the region, ``auto`` or ``adm``, as ``jaxmotion generate --grounding``).
+    Returns a JSON-ready dict: settings, and per model its sampler, per-replication metrics and ``summary`` ``{metric: {mean, ci95, n}}``. With ``ground_truth`` the dataset's
     own motions are scored the same way (``report["ground_truth"]``: the metrics' ceiling on
     this data; APD is 0 with one motion per case)."""
     import jax
@@ -405,11 +405,9 @@ def evaluate(
 def _load_cases(data_dir, split, amdm_config, num_cases, seed, regions, adm_config=None,
                 exclude=False):
     """:func:`jaxmotion.sample.load_cases`; with ``regions`` (the generate protocol) the crops
-    are centred on them and each case gets ``goal_points``: the target's points in the whole
-    room (in the crop frame, as many as the crop has points), and with ``exclude`` the
-    ``exclude`` mask of generate (the crop's points on the other objects of the chosen
-    object's class)."""
-    from jaxmotion.data.format import load_sample
+    are centred on them (and each case has ``goal_points``), each case gets ``chosen_mask``
+    (the crop's points on the region's object) and, with ``exclude``, the ``exclude`` mask of
+    generate (the crop's points on the other objects of that object's class)."""
     from jaxmotion.sample import load_cases
 
     cases, _ = load_cases(data_dir, split, amdm_config, num_cases=num_cases, seed=seed,
@@ -418,16 +416,6 @@ def _load_cases(data_dir, split, amdm_config, num_cases, seed, regions, adm_conf
     if regions is None:
         return cases
     for i, c in enumerate(cases):
-        s = load_sample(Path(data_dir) / "samples" / split / c["file"])
-        with np.load(Path(data_dir) / "scenes" / f"{s['scene_id']}.npz") as sc:
-            on = np.flatnonzero(sc["instance"] == s["target_id"])
-            if len(on) == 0:
-                raise ValueError(f"{c['file']}: the target object {int(s['target_id'])} has no "
-                                 "point in its scene; rebuild the dataset")
-            rng = np.random.default_rng([seed, i, 2])
-            pick = rng.choice(on, len(c["points"]), replace=len(on) < len(c["points"]))
-            world = sc["xyz"][pick]
-        c["goal_points"] = ((world - c["shift"]) @ c["rotation"].T).astype(np.float32)
         c["chosen_mask"] = c["instance"] == (-2 if regions[i]["chosen"] is None
                                              else regions[i]["chosen"])
         if exclude:

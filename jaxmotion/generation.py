@@ -625,8 +625,11 @@ def generate(
     adm_tokens = int(adm_cfg.get("model", {}).get("text_tokens", 0))
     room_view = adm_cfg.get("crop", {}).get("centre") == "room"
     emb = _embed(text, xla_cache / "text-embeddings", adm_tokens)
-    key = jax.random.key(int(seed))
-    k_tiles, k_main = jax.random.split(key)
+    # the root key's two stage keys (region / room view, then sampling) are split inside the
+    # compiled programs, or eagerly only on the paths that need the first: an eager split is
+    # an XLA compilation in every fresh process (~0.1 s)
+    root = jax.random.key(int(seed))
+    stage_key = lambda i: jax.random.split(root)[i]  # noqa: E731
     adm_w, amdm_w = _guidance_pair(guidance)
     adm_sampler = SamplerSpec(method="ddim", steps=int(steps), guidance=adm_w)
     consistency = _consistency(consistency)
@@ -641,7 +644,7 @@ def generate(
     view_index = view_maps = None
     if room_view:
         view_index, view_maps = _room_view_maps(
-            room, adm_cfg, jax.tree.map(lambda a: a[0], emb), k_tiles, adm_sampler, k, seed,
+            room, adm_cfg, jax.tree.map(lambda a: a[0], emb), stage_key(0), adm_sampler, k, seed,
             aot_dir, _digest(versions, adm_sampler, Path(adm_file)), get_pipe)
         lap("adm")
     if object_id is not None:
@@ -651,7 +654,7 @@ def generate(
         centre, chosen, how = _find_region(
             room, text, grounding, spec,
             view=(view_index, view_maps) if room_view else None,
-            adm=(get_pipe, emb, k_tiles, adm_sampler, seed))
+            adm=(get_pipe, emb, lambda: stage_key(0), adm_sampler, seed))
         if not room_view:
             lap("region")
     rng = np.random.default_rng([int(seed), 1])
@@ -667,7 +670,7 @@ def generate(
     exclude = np.isin(room.instance[pick], excluded)
     n_cand = int(adm_candidates) if chosen is not None and not room_view else 1
 
-    args = (np.asarray(jax.random.key_data(k_main)), tile(pts), tile(colors),
+    args = (np.asarray(jax.random.key_data(root)), tile(pts), tile(colors),
             jax.tree.map(lambda a: tile(a[0]), emb), np.ones((k, t_frames), bool))
     if room_view:  # the AMDM on the view's maps, carried to the crop (in the crop frame)
         from jaxmotion.sample import AffordancePipeline
@@ -678,12 +681,13 @@ def generate(
 
     def build_sampler():
         pipe = get_pipe()
+        main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]  # noqa: E731
         if room_view:
-            return lambda kd, p, c, e, m, a: pipe.sample(jax.random.wrap_key_data(kd), p, c, e,
-                                                         m, amdm=amdm_sampler, affordance=a)
+            return lambda kd, p, c, e, m, a: pipe.sample(main(kd), p, c, e, m,
+                                                         amdm=amdm_sampler, affordance=a)
         return lambda kd, p, c, e, m, x, t: pipe.sample(
-            jax.random.wrap_key_data(kd), p, c, e, m, adm=adm_sampler, amdm=amdm_sampler,
-            exclude=x, target=t, candidates=n_cand)
+            main(kd), p, c, e, m, adm=adm_sampler, amdm=amdm_sampler, exclude=x, target=t,
+            candidates=n_cand)
 
     if not room_view:
         args = (*args, tile(exclude), tile(room.instance[pick] == (chosen if n_cand > 1 else -2)))
@@ -865,7 +869,8 @@ def _lit(maps, instance, object_id) -> float:
 def _find_region(room, text, grounding, spec, *, view=None, adm=None):
     """Step 2 of the module docstring without ``object_id``: ``(centre, chosen object id or
     None, how)``. ``view``: a room-view ADM's ``(view_index, maps)``
-    (:func:`_room_view_maps`); else ``adm``: ``(get_pipe, emb, key, sampler, seed)`` for
+    (:func:`_room_view_maps`); else ``adm``: ``(get_pipe, emb, key, sampler, seed)`` (``key``:
+    a function returning the key, called only if the ADM is run) for
     :func:`_choose_region`. ``how`` is :attr:`Generation.grounding`."""
     lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
     candidates, how = candidate_objects(room, text, grounding)
@@ -890,6 +895,7 @@ def _choose_region(get_pipe, room, candidates, emb, spec, key, sampler, seed, lo
       channel) wins;
     - otherwise the room is tiled with half-overlapping squares and the tile holding the
       strongest pelvis-affordance peak (mean of its 32 strongest points) wins.
+    ``key``: a function returning the ADM's key (called only when the ADM runs).
     Returns ``(centre, chosen object id or None)``.
     """
     if candidates:
@@ -897,7 +903,7 @@ def _choose_region(get_pipe, room, candidates, emb, spec, key, sampler, seed, lo
         if len(candidates) == 1:
             return centres[0], candidates[0]["id"]
         crops = _crops(room, centres, spec, seed, 2)
-        maps = _adm_maps(get_pipe, crops, emb, key, sampler)
+        maps = _adm_maps(get_pipe, crops, emb, key(), sampler)
         scores = [_lit(a, room.instance[pick], candidates[i]["id"])
                   for (i, pick, *_), a in zip(crops, maps, strict=True)]
         i = crops[int(np.argmax(scores))][0]
@@ -906,7 +912,7 @@ def _choose_region(get_pipe, room, candidates, emb, spec, key, sampler, seed, lo
     if len(tiles) == 1:
         return tiles[0], None
     crops = _crops(room, tiles, spec, seed, 3)
-    maps = _adm_maps(get_pipe, crops, emb, key, sampler)
+    maps = _adm_maps(get_pipe, crops, emb, key(), sampler)
     scores = [float(np.sort(a[:, 0])[-32:].mean()) for a in maps]
     return np.asarray(tiles[crops[int(np.argmax(scores))][0]]), None
 

@@ -16,6 +16,8 @@ from jaxmotion.body import (
     fit_joints_to_body,
     load_mannequin,
     load_smplx,
+    shaped_rest,
+    shaped_rest_host,
     vertex_normals,
 )
 from jaxmotion.body.priors import (
@@ -76,6 +78,16 @@ def test_mannequin_parity_at_neutral_shape(wooden):
     ref = _mannequin_vertices(go, bp, tr, np.zeros(10))
     assert out.vertices.shape == ref.shape == (3, wooden.num_vertices, 3)
     np.testing.assert_allclose(np.asarray(out.vertices), ref, atol=1e-4)
+
+
+def test_shaped_rest_host_equals_shaped_rest(wooden):
+    betas = np.random.default_rng(3).normal(size=7)  # fewer than the model's 10
+    for b in (None, betas):
+        for got, want in zip(shaped_rest_host(wooden, b), shaped_rest(wooden, b), strict=True):
+            assert got.dtype == np.float64
+            np.testing.assert_allclose(got, np.asarray(want), atol=1e-5)
+    with pytest.raises(ValueError, match="11 coefficients"):
+        shaped_rest_host(wooden, np.zeros(11))
 
 
 def test_mannequin_parity_other_shapes(wooden, posed):

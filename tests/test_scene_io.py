@@ -382,3 +382,17 @@ def test_scene_to_trimesh_points_exports(tmp_path):
     back = load_scene(tmp_path / "out.ply")
     np.testing.assert_allclose(back.xyz, scene.xyz, atol=1e-6)
     np.testing.assert_allclose(back.rgb, scene.rgb, atol=0.51 / 255)
+
+
+def test_loading_an_npz_scene_does_not_import_trimesh(tmp_path):
+    """trimesh costs ~0.2 s of every `jaxmotion generate` start; .npz scenes do not need it."""
+    import subprocess
+    import sys
+
+    rng = np.random.default_rng(0)
+    save_scene(Scene(xyz=rng.uniform(size=(50, 3)), rgb=rng.uniform(size=(50, 3))),
+               tmp_path / "s.npz")
+    code = ("import sys, jaxmotion.generation, jaxmotion.scene as s; "
+            f"s.load_scene({str(tmp_path / 's.npz')!r}); print('trimesh' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -3,6 +3,7 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from jax.test_util import check_grads
@@ -31,6 +32,16 @@ def test_names_parents_and_mirror():
     assert np.all(perm[perm] == np.arange(22))
     assert S.JOINT_NAMES[perm[S.JOINT_NAMES.index("l_wrist")]] == "r_wrist"
     assert perm[S.JOINT_NAMES.index("neck")] == S.JOINT_NAMES.index("neck")
+
+
+def test_rest_joints_host_equals_rest_joints():
+    betas = np.random.default_rng(0).normal(size=6)
+    for b in (None, betas):
+        got = S.rest_joints_host(b)
+        assert got.dtype == np.float64 and got.shape == (22, 3)
+        np.testing.assert_allclose(got, np.asarray(S.rest_joints(b)), atol=1e-5)
+    with pytest.raises(ValueError, match="shape directions"):
+        S.rest_joints_host(np.zeros(S.NUM_BETAS + 1))
 
 
 def test_neutral_rest_is_a_plausible_human():

@@ -22,6 +22,7 @@ from jaxmotion.body.model import (
     load_smplx,
     local_rotations,
     shaped_rest,
+    shaped_rest_host,
     vertex_normals,
 )
 from jaxmotion.body.priors import (

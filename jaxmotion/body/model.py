@@ -277,15 +277,17 @@ def _load_mannequin_cached(anchor: tuple[float, ...]) -> BodyModel:
     fixed = np.zeros((num_joints, 3))
     # Joints 22, 23 (hand roots) are unposed; the 30 finger joints hold the hand mean.
     fixed[num_joints - calib["hand_mean"].shape[0] :] = calib["hand_mean"]
-    f32 = lambda x: jnp.asarray(x, jnp.float32)  # noqa: E731
+    # converted on the host and device_put: jnp.asarray dispatches an XLA program per array,
+    # each compiled anew in every process (~20 ms apiece)
+    f32 = lambda x: jax.device_put(np.asarray(x, np.float32))  # noqa: E731
     return BodyModel(
         v_template=f32(v0 - dirs @ b0),  # so that v_template + dirs @ betas is exact at the anchor
         shapedirs=f32(dirs),
         j_template=f32(calib["joint_rest"]),
         j_shapedirs=f32(calib["joint_dirs"][..., :NUM_BETAS]),
         weights=f32(_mannequin_weights(wooden)),
-        faces=jnp.asarray(wooden["faces"], jnp.int32),
-        posedirs=jnp.zeros((v0.shape[0], 3, 0), jnp.float32),
+        faces=jax.device_put(np.asarray(wooden["faces"], np.int32)),
+        posedirs=f32(np.zeros((v0.shape[0], 3, 0))),
         fixed_pose=f32(fixed),
         parents=parents,
         kind="mannequin",
@@ -349,7 +351,9 @@ def load_smplx(source: str | Path | Mapping[str, Any], num_betas: int = NUM_BETA
         pd = pd[..., : _NUM_BODY_POSE * 9]
     else:
         pd = np.zeros((v.shape[0], 3, 0))
-    f32 = lambda x: jnp.asarray(x, jnp.float32)  # noqa: E731
+    # converted on the host and device_put: jnp.asarray dispatches an XLA program per array,
+    # each compiled anew in every process (~20 ms apiece)
+    f32 = lambda x: jax.device_put(np.asarray(x, np.float32))  # noqa: E731
     return BodyModel(
         v_template=f32(v),
         shapedirs=f32(sd),
@@ -378,6 +382,21 @@ def shaped_rest(model: BodyModel, betas=None) -> tuple[jnp.ndarray, jnp.ndarray]
         raise ValueError(f"betas has {nb} coefficients, the model {model.num_betas}")
     v = v + jnp.einsum("vcb,b->vc", model.shapedirs[..., :nb], betas, precision=_HI)
     j = j + jnp.einsum("jcb,b->jc", model.j_shapedirs[..., :nb], betas, precision=_HI)
+    return v, j
+
+
+def shaped_rest_host(model: BodyModel, betas=None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`shaped_rest` in NumPy (float64), for exporters: no XLA program is dispatched
+    (each eager JAX operation is a compilation in a fresh process)."""
+    v, j = np.asarray(model.v_template, np.float64), np.asarray(model.j_template, np.float64)
+    if betas is None:
+        return v, j
+    betas = np.asarray(betas, np.float64).reshape(-1)
+    nb = betas.shape[-1]
+    if nb > model.num_betas:
+        raise ValueError(f"betas has {nb} coefficients, the model {model.num_betas}")
+    v = v + np.asarray(model.shapedirs, np.float64)[..., :nb] @ betas
+    j = j + np.asarray(model.j_shapedirs, np.float64)[..., :nb] @ betas
     return v, j
 
 

@@ -76,8 +76,9 @@ def case_regions(data_dir, split: str, pipe, *, num_cases: int | None = None,
         if pipe.room_view:
             view = G._room_view_maps(room, pipe.adm_config, jax.tree.map(lambda a: a[0], emb),
                                      key, sampler, 1, seed + i, None, "", lambda: pipe)
-        centre, chosen, how = G._find_region(room, text, grounding, spec, view=view,
-                                             adm=(lambda: pipe, emb, key, sampler, seed + i))
+        centre, chosen, how = G._find_region(
+            room, text, grounding, spec, view=view,
+            adm=(lambda: pipe, emb, lambda: key, sampler, seed + i))
         out.append({"centre": np.asarray(centre, np.float64), "chosen": chosen, "how": how,
                     "target": target, "named": len(named),
                     "has_target": any(o["id"] == target for o in named)})

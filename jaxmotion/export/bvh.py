@@ -42,7 +42,13 @@ from scipy.spatial.transform import Rotation
 
 from jaxmotion._atomic import atomic_open
 from jaxmotion.export._common import Z_UP_TO_Y_UP, check_array, check_fps, smplx_motion
-from jaxmotion.geometry.skeleton import JOINT_NAMES, NUM_BETAS, NUM_JOINTS, PARENTS, rest_joints
+from jaxmotion.geometry.skeleton import (
+    JOINT_NAMES,
+    NUM_BETAS,
+    NUM_JOINTS,
+    PARENTS,
+    rest_joints_host,
+)
 
 __all__ = ["BVH", "read_bvh", "write_bvh"]
 
@@ -99,7 +105,7 @@ def write_bvh(
         betas = check_array("betas", betas, (None,))
         if len(betas) > NUM_BETAS:
             raise ValueError(f"betas has {len(betas)} coefficients; at most {NUM_BETAS}")
-    rest = np.asarray(rest_joints(betas), np.float64)
+    rest = rest_joints_host(betas)
     t = len(go)
 
     local = Rotation.from_rotvec(np.concatenate([go[:, None], bp], axis=1).reshape(-1, 3))

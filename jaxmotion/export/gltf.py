@@ -154,7 +154,7 @@ def write_glb(
     Returns:
       the path written. See the module docstring for the file's layout.
     """
-    from jaxmotion.body.model import load_mannequin, shaped_rest
+    from jaxmotion.body.model import load_mannequin, shaped_rest_host
 
     go, bp, tr = smplx_motion(global_orient, body_pose, transl)
     k, t = go.shape[:2]
@@ -189,9 +189,7 @@ def write_glb(
         if key in shapes:
             continue
         m = model if model is not None else load_mannequin(None if betas is None else betas[s])
-        v_rest, j_rest = (
-            np.asarray(x, np.float64) for x in shaped_rest(m, None if betas is None else betas[s])
-        )
+        v_rest, j_rest = shaped_rest_host(m, None if betas is None else betas[s])
         faces = np.asarray(m.faces, np.int64)
         normals = vertex_normals(v_rest, faces)
         normals[~np.any(normals, axis=1)] = [0.0, 1.0, 0.0]  # glTF wants unit normals everywhere

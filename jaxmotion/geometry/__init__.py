@@ -46,6 +46,7 @@ from jaxmotion.geometry.skeleton import (
     forward_kinematics_with_rotations,
     neutral_skeleton,
     rest_joints,
+    rest_joints_host,
     smplx_joints,
     upright_orientation,
 )

@@ -42,6 +42,7 @@ __all__ = [
     "forward_kinematics_with_rotations",
     "neutral_skeleton",
     "rest_joints",
+    "rest_joints_host",
     "smplx_joints",
     "upright_orientation",
 ]
@@ -135,6 +136,22 @@ def rest_joints(betas: jnp.ndarray | None = None, skeleton: Skeleton | None = No
             "shape directions; pass at most that many."
         )
     return rest + jnp.einsum("jcb,...b->...jc", jnp.asarray(sk.shape_dirs[..., :nb]), betas)
+
+
+def rest_joints_host(betas=None, skeleton: Skeleton | None = None) -> np.ndarray:
+    """:func:`rest_joints` of one shape in NumPy (float64), for exporters: ``[22, 3]``, no XLA
+    program dispatched (each eager JAX operation is a compilation in a fresh process)."""
+    sk = neutral_skeleton() if skeleton is None else skeleton
+    rest = np.asarray(sk.rest, np.float64)
+    if betas is None:
+        return rest
+    betas = np.asarray(betas, np.float64).reshape(-1)
+    if len(betas) > sk.shape_dirs.shape[-1]:
+        raise ValueError(
+            f"betas has {len(betas)} coefficients but the skeleton has "
+            f"{sk.shape_dirs.shape[-1]} shape directions; pass at most that many."
+        )
+    return rest + np.asarray(sk.shape_dirs, np.float64)[..., : len(betas)] @ betas
 
 
 def forward_kinematics_with_rotations(

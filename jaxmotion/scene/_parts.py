@@ -9,9 +9,12 @@ quarter turns about z plus a translation, so every box stays exact and axis-alig
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
+
+if TYPE_CHECKING:
+    import trimesh
 
 # Outward normals of the six box faces, in the order of ``Part.faces``.
 FACE_DIRS = np.array([[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1]], float)
@@ -211,6 +214,8 @@ def sample_parts(parts, num_points: int, rng: np.random.Generator, *, colour_noi
 def parts_mesh(parts) -> trimesh.Trimesh:
     """All visible triangles of parts as one mesh, RGBA uint8 vertex colours (unshared
     vertices, so every triangle keeps its part's flat colour)."""
+    import trimesh  # imported on use (scene loading does not need it)
+
     tri, _, owner = _all_triangles(parts)
     rgb = np.round(np.array([p.rgb for p in parts])[owner] * 255).astype(np.uint8)
     alpha = np.full((3 * len(tri), 1), 255, np.uint8)

@@ -13,11 +13,14 @@ import json
 import os
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from jaxmotion._atomic import atomic_open
+
+if TYPE_CHECKING:  # imported on use: ~0.2 s that loading a .npz scene does not need
+    import trimesh
 
 SUPPORTED_EXTENSIONS = (".ply", ".obj", ".glb", ".gltf", ".off", ".stl", ".npz")
 NPZ_KEYS = ("xyz", "rgb", "normal", "semantic", "instance", "objects", "name")
@@ -209,6 +212,8 @@ def _ply_vertex_property(geom, names, n):
 
 def _vertex_colors(geom, n):
     """Per-vertex RGB [n, 3] in [0, 1] of a mesh or point cloud, or None when undefined."""
+    import trimesh
+
     if isinstance(geom, trimesh.PointCloud):
         c = np.asarray(geom.colors)
     elif geom.visual.kind == "vertex":
@@ -248,6 +253,8 @@ def _concatenate(parts):
 
 def _sample_meshes(meshes, count, seed):
     """Area-weighted surface samples of all meshes in one draw -> Scene arrays (or None)."""
+    import trimesh
+
     parts = [_vertex_data(m) for m in meshes]
     offsets = np.cumsum([0] + [len(m.vertices) for m in meshes])
     faces = np.concatenate([np.asarray(m.faces, np.int64) + o for m, o in zip(meshes, offsets)])
@@ -272,6 +279,8 @@ def _sample_meshes(meshes, count, seed):
 
 def _load_geometry(path, ext, num_points, seed):
     """Scene arrays of a mesh / point-cloud file read by trimesh."""
+    import trimesh
+
     try:  # process=False keeps vertex order, so raw PLY vertex properties still line up
         geoms = trimesh.load_scene(str(path), process=False).dump()  # node transforms baked in
     except Exception as e:
@@ -384,6 +393,8 @@ def save_scene(scene: Scene, path) -> Path:
 
 def scene_to_trimesh_points(scene: Scene) -> trimesh.PointCloud:
     """The scene's points as a ``trimesh.PointCloud`` with RGBA uint8 colours, for export."""
+    import trimesh
+
     rgba = np.concatenate([np.round(scene.rgb * 255.0), np.full((scene.num_points, 1), 255.0)], 1)
     return trimesh.PointCloud(scene.xyz.astype(np.float64), colors=rgba.astype(np.uint8),
                               metadata={"name": scene.name})

@@ -15,15 +15,17 @@ walls are not in the object table: their points have instance -1 and semantic 2 
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
-from scipy import ndimage
 
 from jaxmotion.scene._layout import Layout, turn
 from jaxmotion.scene._parts import FACE_DIRS, Part, moved, part, parts_mesh, sample_parts
 from jaxmotion.scene.furniture import CATEGORY_IDS, build
 from jaxmotion.scene.io import Y_UP_TO_Z_UP, Scene
+
+if TYPE_CHECKING:  # trimesh and scipy.ndimage are imported on use (loading a scene needs neither)
+    import trimesh
 
 ROOM_KINDS = ("bedroom", "living_room", "office", "dining_room", "bathroom")
 ROOM_SHAPES = ("rect", "L")
@@ -314,6 +316,8 @@ def free_space_grid(room: Room, resolution: float = 0.05, clearance: float = 0.2
     floor = np.zeros(x.shape, bool)
     for x0, y0, x1, y1 in room.floor_rects:
         floor |= (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
+    from scipy import ndimage
+
     to_wall = ndimage.distance_transform_edt(np.pad(floor, 1))[1:-1, 1:-1] * resolution
     free = floor & (to_wall - resolution / 2 >= clearance)
     for obj in room.objects:
@@ -328,6 +332,8 @@ def is_navigable(room: Room, resolution: float = 0.05, clearance: float = 0.2) -
     """True when one 4-connected free component of :func:`free_space_grid` holds the door's
     approach point and, for every object, at least one of its :func:`approach_points`."""
     free, origin, res = free_space_grid(room, resolution, clearance)
+    from scipy import ndimage
+
     labels, _ = ndimage.label(free)
 
     def component(points):

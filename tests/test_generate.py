@@ -226,9 +226,13 @@ def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
     with np.load(tmp_path / "g" / "motion.npz") as f:
         np.testing.assert_allclose(f["guidance"], [2.0, 1.0])
     assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
-                 "--consistency", "0", "--out", str(tmp_path / "c"), "--checkpoints", *ckpt]) == 0
+                 "--consistency", "0", "--adm-candidates", "2", "--out", str(tmp_path / "c"),
+                 "--checkpoints", *ckpt]) == 0
+    line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     with np.load(tmp_path / "c" / "motion.npz") as f:
         assert float(f["consistency"]) == 0.0
+        # the demo's one chair is the known target: the maps drawn are recorded
+        assert int(f["adm_candidates"]) == line["adm_candidates"] == 2
     for bad in ("1.5", "x"):
         with pytest.raises(SystemExit):
             main(["generate", "--consistency", bad, "--out", str(tmp_path / "bad")])
@@ -320,4 +324,7 @@ def test_known_target_keeps_the_map_off_its_class_mates(tiny_runs, ckpt):
     plain = jaxmotion.generate(room, f"walk to the {dup['category']}", grounding="adm",
                                checkpoints=ckpt, fit=False, **FAST)
     assert plain.excluded == ()
-    assert json.loads(jaxmotion.generation.summary(r))["excluded"] == list(others)
+    line = json.loads(jaxmotion.generation.summary(r))
+    assert line["excluded"] == list(others)
+    # the target is known: the default best of 4 maps (recorded in the result and its line)
+    assert r.adm_candidates == line["adm_candidates"] == 4

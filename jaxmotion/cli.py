@@ -143,7 +143,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     print(f"generating {args.samples} motion(s) for {args.text!r} in {args.scene} ...",
           file=sys.stderr, flush=True)
     res = generate(args.scene, args.text, object_id=args.object, samples=args.samples,
-                   seed=args.seed, steps=args.steps, guidance=args.guidance,
+                   seed=args.seed, steps=args.steps, adm_steps=args.adm_steps,
+                   guidance=args.guidance,
                    consistency=args.consistency, grounding=args.grounding,
                    adm_candidates=args.adm_candidates, checkpoints=ckpt,
                    num_points=args.points, progress=True)
@@ -272,7 +273,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="target object's instance id (skips finding it from the text)")
     p.add_argument("--samples", type=int, default=1, help="motions to sample (K, default 1)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--steps", type=int, default=20, help="DDIM steps per stage (default 20)")
+    p.add_argument("--steps", type=int, default=20,
+                   help="DDIM steps of the motion stage (default 20)")
+    p.add_argument("--adm-steps", type=int, default=None, metavar="N",
+                   help="DDIM steps of the affordance stage (default 10)")
     p.add_argument("--guidance", type=_guidance_arg, default=None, metavar="G|ADM,AMDM",
                    help="classifier-free guidance scale of both stages, or one per stage "
                    "(default: the shipped checkpoints' tuned scales; 1 = no guidance)")
@@ -288,7 +292,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--adm-candidates", type=int, default=None, metavar="C",
                    help="once the target object is known (--object, or found from the text), "
                    "draw C affordance maps per sample and keep the one that lights it most "
-                   "(default 4; 1 = one map, ~0.8 s faster)")
+                   "(default 8; 1 = one map, ~0.8 s faster)")
     p.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
     p.add_argument("--checkpoints", nargs="+", default=None, metavar="PATH",
                    help="a folder with adm.safetensors and amdm.safetensors, or the ADM and "

@@ -11,7 +11,7 @@ import pytest
 import jaxmotion
 from jaxmotion.generation import GenerateError, default_checkpoints
 
-FAST = dict(steps=2, fit_iters=5)
+FAST = dict(steps=2, adm_steps=2, fit_iters=5)
 
 
 @pytest.fixture(scope="module")
@@ -226,13 +226,14 @@ def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
     with np.load(tmp_path / "g" / "motion.npz") as f:
         np.testing.assert_allclose(f["guidance"], [2.0, 1.0])
     assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
-                 "--consistency", "0", "--adm-candidates", "2", "--out", str(tmp_path / "c"),
-                 "--checkpoints", *ckpt]) == 0
+                 "--consistency", "0", "--adm-candidates", "2", "--adm-steps", "3",
+                 "--out", str(tmp_path / "c"), "--checkpoints", *ckpt]) == 0
     line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     with np.load(tmp_path / "c" / "motion.npz") as f:
         assert float(f["consistency"]) == 0.0
         # the demo's one chair is the known target: the maps drawn are recorded
         assert int(f["adm_candidates"]) == line["adm_candidates"] == 2
+        assert int(f["adm_steps"]) == line["adm_steps"] == 3 and line["steps"] == 2
     for bad in ("1.5", "x"):
         with pytest.raises(SystemExit):
             main(["generate", "--consistency", bad, "--out", str(tmp_path / "bad")])
@@ -326,5 +327,5 @@ def test_known_target_keeps_the_map_off_its_class_mates(tiny_runs, ckpt):
     assert plain.excluded == ()
     line = json.loads(jaxmotion.generation.summary(r))
     assert line["excluded"] == list(others)
-    # the target is known: the default best of 4 maps (recorded in the result and its line)
-    assert r.adm_candidates == line["adm_candidates"] == 4
+    # the target is known: the default number of maps (recorded in the result and its line)
+    assert r.adm_candidates == line["adm_candidates"] == jaxmotion.generation.DEFAULT_ADM_CANDIDATES

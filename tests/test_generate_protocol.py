@@ -204,10 +204,17 @@ def test_adm_candidates_in_eval_and_generate(tiny_runs):
     root, out = tiny_runs
     m = parse_model("c=x,y,ddim4,adm_candidates=3")
     assert m.adm_candidates == 3 and m.sampler_label == "DDIM-4 (best of 3 ADM maps)"
-    for bad in ("c=x,y,adm_candidates=0", "c=x,y,adm_candidates=two"):
-        with pytest.raises(ValueError, match="adm_candidates must be"):
+    m = parse_model("c=x,y,ddim4,adm_candidates=3,adm_steps=2")
+    assert m.adm_steps == 2 and m.sampler_label == "DDIM-4 (ADM DDIM-2, best of 3 ADM maps)"
+    assert parse_model("c=x,y,ddim4").adm_steps is None
+    for bad, msg in (("c=x,y,adm_candidates=0", "adm_candidates must be"),
+                     ("c=x,y,adm_candidates=two", "adm_candidates must be"),
+                     ("c=x,y,adm_steps=0", "adm_steps must be"),
+                     ("c=x,y,ddpm,adm_steps=5", "needs a DDIM sampler")):
+        with pytest.raises(ValueError, match=msg):
             parse_model(bad)
-    spec = [ModelSpec("c", str(root / "adm"), str(root / "amdm"), "ddim", 2, adm_candidates=2)]
+    spec = [ModelSpec("c", str(root / "adm"), str(root / "amdm"), "ddim", 2, adm_candidates=2,
+                      adm_steps=1)]
     kw = dict(num_cases=2, samples=1, replications=1, body=False, batch_size=4, progress=False)
     with pytest.raises(ValueError, match="needs --protocol generate"):
         evaluate(out["data"], spec, **kw)
@@ -216,7 +223,7 @@ def test_adm_candidates_in_eval_and_generate(tiny_runs):
     ckpt = (str(root / "adm"), str(root / "amdm"))
     scene = jaxmotion.generation.demo_scene()
     chair = next(o for o in scene.objects if o["category"] == "chair")
-    fast = dict(checkpoints=ckpt, fit=False, steps=2, seed=1)
+    fast = dict(checkpoints=ckpt, fit=False, steps=2, adm_steps=2, seed=1)
     a = jaxmotion.generate(scene, "sit down", object_id=chair["id"], adm_candidates=3, **fast)
     b = jaxmotion.generate(scene, "sit down", object_id=chair["id"], adm_candidates=3, **fast)
     np.testing.assert_array_equal(a.joints, b.joints)
@@ -224,3 +231,5 @@ def test_adm_candidates_in_eval_and_generate(tiny_runs):
     for bad in (0, 17, 2.5):
         with pytest.raises(GenerateError, match="adm_candidates must be"):
             jaxmotion.generate(scene, "sit down", adm_candidates=bad, **fast)
+    with pytest.raises(GenerateError, match="adm_steps must be"):
+        jaxmotion.generate(scene, "sit down", **{**fast, "adm_steps": 0})

@@ -70,6 +70,7 @@ class ModelSpec:
     affordance: str = "adm"  # "gt": the AMDM gets ground-truth maps (an oracle row)
     consistency: float = 0.0  # affordance-consistency guidance strength of the AMDM (0 = off)
     adm_candidates: int = 1  # ADM maps per sample; the one lighting the known target is kept
+    adm_steps: int | None = None  # DDIM steps of the ADM stage (None: ``steps``)
 
     @property
     def sampler_label(self) -> str:
@@ -80,6 +81,8 @@ class ModelSpec:
             guided.append(f"consistency {self.consistency:g}")
         if self.affordance == "gt":
             guided.append("ground-truth maps")
+        if self.adm_steps is not None and self.method == "ddim":
+            guided.append(f"ADM DDIM-{self.adm_steps}")
         if self.adm_candidates > 1:
             guided.append(f"best of {self.adm_candidates} ADM maps")
         return label + (f" ({', '.join(guided)})" if guided else "")
@@ -87,7 +90,9 @@ class ModelSpec:
 
 def parse_model(text: str) -> ModelSpec:
     """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,consistency=S]
-    [,affordance=adm|gt][,adm_candidates=C]`` → :class:`ModelSpec` (the ``--model`` syntax).
+    [,affordance=adm|gt][,adm_candidates=C][,adm_steps=N]`` → :class:`ModelSpec` (the
+    ``--model`` syntax). ``adm_steps``: DDIM steps of the ADM stage when they differ from the
+    sampler's (as ``jaxmotion generate --adm-steps``).
     ``adm_candidates`` (generate protocol only): C ADM maps per sample, the one lighting the
     region's object most is kept, as ``jaxmotion generate --adm-candidates``. ``consistency``: the
     strength in [0, 1] of affordance-consistency guidance on the AMDM (0, the default, = off).
@@ -114,14 +119,19 @@ def parse_model(text: str) -> ModelSpec:
             raise ValueError(f"--model {text!r}: sampler {positional[2]!r} is not ddimN (N > 0) "
                              "or ddpm")
     guidance = {"adm_guidance": 1.0, "amdm_guidance": 1.0}
-    affordance, consistency, candidates = "adm", 0.0, 1
+    affordance, consistency, candidates, adm_steps = "adm", 0.0, 1, None
     for opt in options:
         key, _, value = opt.partition("=")
-        if key == "adm_candidates":
+        if key in ("adm_candidates", "adm_steps"):
             if not value.isdigit() or int(value) < 1:
-                raise ValueError(f"--model {text!r}: adm_candidates must be an integer ≥ 1, "
+                raise ValueError(f"--model {text!r}: {key} must be an integer ≥ 1, "
                                  f"got {value!r}")
-            candidates = int(value)
+            if key == "adm_candidates":
+                candidates = int(value)
+            elif method != "ddim":
+                raise ValueError(f"--model {text!r}: adm_steps needs a DDIM sampler (ddimN)")
+            else:
+                adm_steps = int(value)
             continue
         if key == "consistency":
             try:
@@ -141,7 +151,7 @@ def parse_model(text: str) -> ModelSpec:
         if key not in guidance:
             raise ValueError(f"--model {text!r}: unknown option {key!r}; valid: "
                              + ", ".join([*guidance, "consistency", "affordance",
-                                          "adm_candidates"]))
+                                          "adm_candidates", "adm_steps"]))
         try:
             guidance[key] = float(value)
         except ValueError:
@@ -149,7 +159,8 @@ def parse_model(text: str) -> ModelSpec:
         if not guidance[key] > 0:
             raise ValueError(f"--model {text!r}: {key} must be > 0 (1 = no guidance)")
     return ModelSpec(name, positional[0], positional[1], method, steps, **guidance,
-                     affordance=affordance, consistency=consistency, adm_candidates=candidates)
+                     affordance=affordance, consistency=consistency, adm_candidates=candidates,
+                     adm_steps=adm_steps)
 
 
 # --------------------------------------------------------------------------- per case
@@ -308,7 +319,8 @@ def evaluate(
     for spec in models:
         t_model = time.perf_counter()
         pipe = AffordancePipeline.from_workdirs(spec.adm, spec.amdm)
-        adm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.adm_guidance)
+        adm_sampler = SamplerSpec(spec.method, spec.adm_steps or spec.steps,
+                                  guidance=spec.adm_guidance)
         regions = None
         if protocol == "generate":
             from jaxmotion.eval.region_probe import case_regions

@@ -34,10 +34,10 @@ Steps:
      grounding); without candidates, the room is tiled with half-overlapping squares and the
      tile with the strongest predicted pelvis-affordance peak is used.
 3. **ADM → AMDM**: affordance maps then motions for ``samples`` seeds, jitted, vmapped
-   programs (DDIM with ``adm_steps`` steps for the maps, ``steps`` for the motions). Once the target object is known (given as
-   ``object_id``, or chosen with ``grounding="auto"``), the other objects of its class in the
-   square are left out of the ADM's map: at every step the map's clean estimate is set to "no
-   affordance" on their points (``exclude`` of
+   programs (DDIM with ``adm_steps`` steps for the maps, ``steps`` for the motions). Once the
+   target object is known (given as ``object_id``, or chosen with ``grounding="auto"``), the
+   other objects of its class in the square are left out of the ADM's map: at every step the
+   map's clean estimate is set to "no affordance" on their points (``exclude`` of
    :meth:`~jaxmotion.sample.AffordancePipeline.sample_affordance`), so the sampler puts the
    map elsewhere; the shipped ADM otherwise often lights another chair than the chosen one.
    The ADM also draws ``adm_candidates`` maps per sample (default 8) and the one lighting the

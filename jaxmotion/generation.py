@@ -65,7 +65,10 @@ import numpy as np
 from jaxmotion._version import __version__
 
 __all__ = [
+    "DEFAULT_ADM_CANDIDATES",
+    "DEFAULT_ADM_STEPS",
     "DEFAULT_CONSISTENCY",
+    "DEFAULT_GUIDANCE",
     "DEFAULT_TEXT",
     "GenerateError",
     "Generation",

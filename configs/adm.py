@@ -16,6 +16,14 @@ across) instead of the AMDM's 4 m crop around the motion, so the anchor of "the 
 the desk" is in view; the pipeline carries its map to the AMDM's crop by nearest neighbours.
 ``init_from=DIR`` starts the ADM from another ADM run's weights (workdir or ``.safetensors``;
 same model config) instead of random ones, e.g. to fine-tune a crop-view ADM to the room view.
+
+Selection by grounding (``grounding_every=N``): every N steps the EMA weights draw maps
+(DDIM, ``grounding_steps``, guidance ``grounding_guidance``) on the first ``grounding_cases``
+val crops (the paper protocol's crops), and the run logs how often a map reaches the target
+instance (``grounding/instance_success@0.3``), its class, and the class's mean distance. The
+weights with the best instance success so far are exported to ``model_best.safetensors``
+(``best.json`` says which step): validation loss keeps falling after grounding stops improving,
+so pick the ADM by this, not by the loss.
 """
 
 from __future__ import annotations
@@ -33,6 +41,10 @@ class ADMTrainConfig(TrainConfig):
     workdir: str = "runs/adm"
     backbone_workdir: str = "runs/segmentation"
     init_from: str = ""
+    grounding_every: int = 0
+    grounding_cases: int = 128
+    grounding_steps: int = 10
+    grounding_guidance: float = 5.0
     steps: int = 6000
     batch_size: int = 16
     model: ADMConfig = dataclasses.field(default_factory=ADMConfig)

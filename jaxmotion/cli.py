@@ -74,7 +74,7 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if not args.preview_only:
         settings = SynthSettings(scenes=args.scenes, per_scene=args.per_scene, seed=args.seed,
-                                 points_per_scene=args.points)
+                                 points_per_scene=args.points, split_scenes=args.split_scenes)
         manifest = build_dataset(out, settings, workers=args.workers, stats=not args.no_stats)
         print(f"dataset in {out}: samples {manifest['samples']}, scenes {manifest['scenes']}, "
               f"{manifest['build_seconds_this_run']} s")
@@ -223,6 +223,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--workers", type=int, default=1, help="processes (default 1)")
     p.add_argument("--points", type=int, default=50_000, help="points per room scan")
+    p.add_argument("--split-scenes", type=int, default=None, metavar="S",
+                   help="split only the first S rooms into train / val / test and make every "
+                   "later room a training room: more training rooms, the same val and test (run "
+                   "on an S-room build's folder, it adds the rooms in place)")
     p.add_argument("--no-stats", action="store_true", help="skip the normalisation statistics")
     p.add_argument("--preview", action="store_true", help="also render PNG previews of samples")
     p.add_argument("--preview-only", action="store_true",

@@ -37,8 +37,8 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-__all__ = ["AffordancePipeline", "SamplerSpec", "case_inputs", "load_cases", "sample_split",
-           "take_text"]
+__all__ = ["AffordancePipeline", "SamplerSpec", "adm_map_one", "case_inputs", "load_cases",
+           "sample_split", "take_text"]
 
 
 def take_text(text, index):
@@ -73,6 +73,32 @@ class SamplerSpec:
         if self.method == "ddim":
             return ddim_sample(key, denoise, schedule, shape, num_steps=self.steps, eta=self.eta, **kw)
         raise ValueError(f"unknown sampler {self.method!r}; valid: ddpm, ddim")
+
+
+def adm_map_one(net, schedule, stats, key, points, colors, text, spec: SamplerSpec,
+                exclude=None):
+    """One ADM map ``[N, 6]`` in [0, 1] for one crop (``points``, ``colors`` ``[N, 3]``) and one
+    text condition (unbatched): ``net`` is the frozen backbone + ADM (:func:`load_adm`'s, or
+    the training model), ``stats`` the affordance ``(mean, std)``; ``exclude`` ``[N]`` as in
+    :meth:`AffordancePipeline.sample_affordance`. Written for one example: ``jax.vmap`` it."""
+    from jaxmotion.models import adm_text_cond
+
+    mean, std = stats
+    feats = net.features(points[None], colors[None])
+    fixed = {"features": feats, "xyz": points[None]}
+
+    def denoise(x, t, cond):  # x may be the doubled batch of guidance
+        return net.adm(x, t, {**cond, **_tile(fixed, x.shape[0])}, deterministic=True)
+
+    shape = (1, points.shape[0], 6)
+    text = jax.tree.map(lambda a: jnp.asarray(a)[None], text)
+    refine = None
+    if exclude is not None:  # no affordance there (0, normalised) in every clean estimate
+        far = -mean / std
+        refine = lambda x0, t: jnp.where(exclude[None, :, None], far, x0)  # noqa: E731
+    x0 = spec.run(key, denoise, schedule, shape, adm_text_cond(text),
+                  lambda c: jax.tree.map(jnp.zeros_like, c), refine)
+    return jnp.clip(x0[0] * std + mean, 0.0, 1.0)
 
 
 def _tensor(tensors, name, source):
@@ -165,29 +191,12 @@ class AffordancePipeline:
 
     # -- one example (vmapped below) ---------------------------------------------------------
     def _affordance_one(self, key, points, colors, text, spec: SamplerSpec, exclude=None):
-        from jaxmotion.models import adm_text_cond
-
-        net = self.adm_net
-        feats = net.features(points[None], colors[None])
-        fixed = {"features": feats, "xyz": points[None]}
-
-        def denoise(x, t, cond):  # x may be the doubled batch of guidance
-            return net.adm(x, t, {**cond, **_tile(fixed, x.shape[0])}, deterministic=True)
-
-        shape = (1, points.shape[0], 6)
-        text = jax.tree.map(lambda a: jnp.asarray(a)[None], text)
         if self.text_tokens and not isinstance(text, dict):
             raise ValueError(f"this ADM reads word-level text ({self.text_tokens} tokens): pass "
                              "the text condition of AffordancePipeline.embed_text, not a pooled "
                              "embedding array")
-        refine = None
-        if exclude is not None:  # no affordance there (0, normalised) in every clean estimate
-            far = -self.a_mean / self.a_std
-            refine = lambda x0, t: jnp.where(exclude[None, :, None], far, x0)  # noqa: E731
-        x0 = spec.run(key, denoise, self.adm_schedule, shape, adm_text_cond(text),
-                      lambda c: jax.tree.map(jnp.zeros_like, c), refine)
-        aff = x0[0] * self.a_std + self.a_mean
-        return jnp.clip(aff, 0.0, 1.0)
+        return adm_map_one(self.adm_net, self.adm_schedule, (self.a_mean, self.a_std), key,
+                           points, colors, text, spec, exclude)
 
     def _motion_one(self, key, points, scene_feat, text, mask, spec: SamplerSpec):
         from jaxmotion.models import pooled_text

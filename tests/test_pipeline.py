@@ -42,6 +42,35 @@ def test_amdm_resumes(runs):
     assert res.resumed_from == 30 and res.step == 35
 
 
+def test_adm_selection_by_grounding(runs, tmp_path):
+    """grounding_every: the run logs the grounding of the EMA ADM's maps on fixed val crops and
+    exports the best weights to model_best.safetensors (best.json), which load like any ADM and
+    survive a resume; loader_workers prepares the batches in processes."""
+    from jaxmotion.train.tasks import load_adm
+
+    root, out = runs
+    args = [f"data_dir={out['data']}", "preset=tiny", "steps=20", f"workdir={tmp_path / 'adm'}",
+            f"backbone_workdir={root / 'segmentation'}", "grounding_every=10",
+            "grounding_cases=5", "grounding_steps=3", "loader_workers=2"]
+    train(cfg := load_config("configs/adm.py", args), get_task(cfg))
+    rows = [json.loads(x) for x in (tmp_path / "adm" / "metrics.jsonl").read_text().splitlines()]
+    probes = [r for r in rows if "grounding/instance_success@0.3" in r]
+    assert [r["step"] for r in probes] == [10, 20]
+    for r in probes:
+        assert 0.0 <= r["grounding/instance_success@0.3"] <= r["grounding/class_success@0.3"] <= 1
+        assert np.isfinite(r["grounding/min_dist"])
+    best = json.loads((tmp_path / "adm" / "best.json").read_text())
+    scores = [r["grounding/instance_success@0.3"] for r in probes]
+    assert best["score"] == max(scores) and best["step"] == probes[scores.index(max(scores))]["step"]
+    net, _, _ = load_adm(tmp_path / "adm" / "model_best.safetensors")
+    assert net.adm is not None
+    res = train(cfg := load_config("configs/adm.py", [*args[:2], "steps=25", *args[3:]]),
+                get_task(cfg))
+    assert res.resumed_from == 20
+    again = json.loads((tmp_path / "adm" / "best.json").read_text())
+    assert again["score"] >= best["score"] and (again["step"] in (best["step"], 25))
+
+
 def test_sampling_shapes_and_world_frame(runs, tmp_path):
     from jaxmotion.sample import SamplerSpec, sample_split
 

@@ -58,6 +58,36 @@ def test_deterministic_and_resumable(built, tmp_path):
         build_dataset(other, SynthSettings(scenes=3, per_scene=2, seed=4), progress=False)
 
 
+def test_grow_training_rooms_keeps_val_and_test(built, tmp_path):
+    """--split-scenes: the first S rooms keep their split, later rooms are train; growing an
+    S-room build in place gives the same files as building the larger set fresh."""
+    import shutil
+
+    root, _ = built
+    grown = tmp_path / "grown"
+    shutil.copytree(root, grown)
+    more = SynthSettings(scenes=5, per_scene=2, seed=3, points_per_scene=6000, split_scenes=3)
+    assert more.split_labels() == split_of_scenes(3, 3) + ["train", "train"]
+    manifest = build_dataset(grown, more, progress=False, stats=False)
+    assert manifest["samples"] == {"train": 6, "val": 2, "test": 2}
+    assert manifest["settings"]["split_scenes"] == 3
+    for split in ("val", "test"):
+        names = sorted(f.name for f in (root / "samples" / split).glob("*.npz"))
+        assert names == sorted(f.name for f in (grown / "samples" / split).glob("*.npz"))
+    fresh = tmp_path / "fresh"
+    build_dataset(fresh, more, progress=False, stats=False)
+    for f in sorted(fresh.rglob("*.npz")):
+        with np.load(f) as a, np.load(grown / f.relative_to(fresh)) as b:
+            for k in a.files:
+                np.testing.assert_array_equal(a[k], b[k], err_msg=f"{f.name}:{k}")
+    # growing needs split_scenes equal to the old build's scene count
+    with pytest.raises(DatasetError, match="split-scenes"):
+        build_dataset(grown, SynthSettings(scenes=6, per_scene=2, seed=3, points_per_scene=6000,
+                                           split_scenes=4), progress=False, stats=False)
+    with pytest.raises(ValueError, match="split_scenes"):
+        SynthSettings(scenes=3, per_scene=2, split_scenes=4)
+
+
 def test_split_by_scene_counts():
     labels = split_of_scenes(2000, 0)
     assert labels.count("train") == 1600 and labels.count("val") == 200 and labels.count("test") == 200

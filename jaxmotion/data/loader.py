@@ -22,7 +22,10 @@ Determinism: the order of epoch ``e`` is a permutation drawn from
 ``default_rng([seed, e])`` and batch ``k`` of it crops with
 ``default_rng([seed, e, k])``, so iteration restarted at any step yields the
 same batches (this is what makes resumed training bit-identical). A background
-thread prepares the next batches while the training step runs.
+thread prepares the next batches while the training step runs; with ``workers=W``
+W processes crop them (a GPU step outruns one thread), and the affordance maps,
+computed in JAX, are added in the calling process. The batches are the same with
+any number of workers.
 """
 
 from __future__ import annotations
@@ -125,34 +128,53 @@ class Dataset:
                     semantic=sem[c.indices],
                     mask=mask, action=np.int32(ACTIONS.index(s["action"])), text=s["text"])
 
-    def batch(self, indices, rng: np.random.Generator) -> dict:
-        """Stack examples and add the ground-truth affordance map (computed in JAX)."""
+    def host_batch(self, indices, rng: np.random.Generator) -> dict:
+        """Stacked examples and their motion features: everything but the affordance map."""
         ex = [self.example(int(i), rng) for i in indices]
         out = {k: np.stack([e[k] for e in ex]) for k in ex[0] if k != "text"}
         out["text"] = [e["text"] for e in ex]
         out["motion"] = motion_features(out["joints"])
+        return out
+
+    def add_affordance(self, out: dict) -> dict:
+        """Add the ground-truth affordance map of a :meth:`host_batch` (computed in JAX)."""
         out["affordance"] = np.asarray(
             _batched_affordance(self.sigma)(out["points"], out["joints"], out["mask"])
         )
         return out
 
+    def batch(self, indices, rng: np.random.Generator) -> dict:
+        """Stack examples and add the ground-truth affordance map (computed in JAX)."""
+        return self.add_affordance(self.host_batch(indices, rng))
+
     def epoch_order(self, seed: int, epoch: int) -> np.ndarray:
         return np.random.default_rng([seed, epoch]).permutation(len(self))
 
+    def step_batch(self, step: int, batch_size: int, seed: int, per_epoch: int) -> dict:
+        """The host batch of global step ``step`` (see the module docstring)."""
+        epoch, k = divmod(step, per_epoch)
+        order = self.epoch_order(seed, epoch)
+        idx = order[k * batch_size : (k + 1) * batch_size]
+        return self.host_batch(idx, np.random.default_rng([seed, epoch, k]))
+
     def iterate(self, batch_size: int, seed: int, *, start_step: int = 0, prefetch: int = 2,
-                drop_last: bool = True):
-        """Endless iterator of batches from global step ``start_step`` on (epochs reshuffled)."""
+                drop_last: bool = True, workers: int = 0):
+        """Endless iterator of batches from global step ``start_step`` on (epochs reshuffled).
+
+        ``workers`` > 0: that many processes prepare the host batches, up to
+        ``max(prefetch, 2 * workers)`` steps ahead; the batches are the same as with none."""
         per_epoch = len(self) // batch_size if drop_last else -(-len(self) // batch_size)
         if per_epoch == 0:
             raise DatasetError(
                 f"{self.split} split has {len(self)} samples, fewer than batch_size={batch_size}"
             )
+        if workers > 0:
+            yield from self._iterate_pooled(batch_size, seed, per_epoch, start_step, workers,
+                                            max(prefetch, 2 * workers))
+            return
 
         def make(step):
-            epoch, k = divmod(step, per_epoch)
-            order = self.epoch_order(seed, epoch)
-            idx = order[k * batch_size : (k + 1) * batch_size]
-            return self.batch(idx, np.random.default_rng([seed, epoch, k]))
+            return self.add_affordance(self.step_batch(step, batch_size, seed, per_epoch))
 
         if prefetch <= 0:
             step = start_step
@@ -189,6 +211,42 @@ class Dataset:
                 yield item
         finally:
             stop.set()
+
+    def _iterate_pooled(self, batch_size, seed, per_epoch, start_step, workers, ahead):
+        import collections
+        import concurrent.futures as cf
+        import multiprocessing as mp
+
+        args = (str(self.root), self.split, self.spec, self.max_frames, self.sigma,
+                self._scenes.capacity, len(self.files))
+        # spawn: the parent holds JAX (and maybe a GPU); the workers import only NumPy code
+        pool = cf.ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"),
+                                      initializer=_init_worker, initargs=(args,))
+        pending: collections.deque = collections.deque()
+        submitted = start_step
+        try:
+            while True:
+                while len(pending) < ahead:
+                    pending.append(pool.submit(_worker_batch, submitted, batch_size, seed,
+                                               per_epoch))
+                    submitted += 1
+                yield self.add_affordance(pending.popleft().result())
+        finally:
+            pool.shutdown(wait=False, cancel_futures=True)
+
+
+_WORKER_DATASET: Dataset | None = None
+
+
+def _init_worker(args):
+    global _WORKER_DATASET
+    root, split, spec, max_frames, sigma, cache, n = args
+    _WORKER_DATASET = Dataset(root, split, spec, max_frames=max_frames, sigma=sigma,
+                              scene_cache=cache, max_samples=n)
+
+
+def _worker_batch(step, batch_size, seed, per_epoch):
+    return _WORKER_DATASET.step_batch(step, batch_size, seed, per_epoch)
 
 
 class Stats(dict):

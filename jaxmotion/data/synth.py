@@ -9,6 +9,13 @@ attempt])`` and retried with the next attempt when the kinematic character
 cannot perform it (no path, seat unreachable). The split is **by scene**: a
 seeded permutation of the scene indices gives 80 % train, 10 % val, 10 % test.
 
+``--split-scenes S`` (``SynthSettings.split_scenes``) grows the training set
+without touching val and test: the permutation runs over the first ``S`` scenes
+only and every scene from ``S`` on is a training scene. Scene ``i`` is the same
+room with the same samples whatever ``scenes`` is, so ``--scenes 5000
+--split-scenes 2000`` holds the 2000-scene build (same val / test files) plus
+3000 training rooms; run on the folder of that build, it adds them in place.
+
 Everything is deterministic for a seed (whatever the number of workers), every
 file is written atomically, and a scene counts as done when its scene file and
 all its sample files exist, so an interrupted build resumes where it stopped by
@@ -51,6 +58,37 @@ class SynthSettings:
     points_per_scene: int = 50_000
     train_fraction: float = 0.8
     val_fraction: float = 0.1
+    split_scenes: int | None = None
+
+    def __post_init__(self):
+        if self.split_scenes is not None and not 3 <= self.split_scenes <= self.scenes:
+            raise ValueError(
+                f"split_scenes={self.split_scenes} must be between 3 and scenes={self.scenes}: "
+                "the first split_scenes rooms are split into train / val / test, the rest train")
+
+    def split_labels(self) -> list[str]:
+        """The split of every scene index (see the module docstring)."""
+        n = self.scenes if self.split_scenes is None else self.split_scenes
+        labels = split_of_scenes(n, self.seed, self.train_fraction, self.val_fraction)
+        return labels + ["train"] * (self.scenes - n)
+
+
+def _settings_dict(settings: SynthSettings) -> dict:
+    """What manifests record: the fields, ``split_scenes`` only when set (so manifests written
+    before it existed compare equal)."""
+    d = asdict(settings)
+    if d["split_scenes"] is None:
+        del d["split_scenes"]
+    return d
+
+
+def _grows(old: dict, new: SynthSettings) -> bool:
+    """Whether ``new`` only adds training rooms to a build with settings ``old``: same seed,
+    points and fractions, and its ``split_scenes`` equal to the old split's scene count."""
+    old_split = old.get("split_scenes") or old.get("scenes")
+    same = {k: v for k, v in old.items() if k not in ("scenes", "split_scenes")} == {
+        k: v for k, v in asdict(new).items() if k not in ("scenes", "split_scenes")}
+    return same and new.split_scenes == old_split and new.scenes >= old.get("scenes", 0)
 
 
 def scene_id(i: int) -> str:
@@ -131,16 +169,18 @@ def _check_existing(root: Path, settings: SynthSettings):
         partial = root / ".synth_settings.json"
         if partial.is_file():
             old = json.loads(partial.read_text())
-            if old != asdict(settings):
+            if old != _settings_dict(settings):
                 raise DatasetError(
                     f"{root} holds an unfinished build with other settings ({old}); "
                     "use the same settings to resume, or another --out"
                 )
         return
     old = load_manifest(root).get("settings")
-    if old != asdict(settings):
+    if old != _settings_dict(settings) and not _grows(old or {}, settings):
         raise DatasetError(
-            f"{root} already holds a dataset built with {old}; choose another --out or the same settings"
+            f"{root} already holds a dataset built with {old}; choose another --out or the same "
+            "settings (or, to add training rooms, more --scenes with --split-scenes equal to its "
+            "scene count)"
         )
 
 
@@ -154,9 +194,8 @@ def build_dataset(out, settings: SynthSettings, *, workers: int = 1, progress: b
     root = Path(out)
     (root / "scenes").mkdir(parents=True, exist_ok=True)
     _check_existing(root, settings)
-    write_json_atomic(root / ".synth_settings.json", asdict(settings))
-    splits = split_of_scenes(settings.scenes, settings.seed, settings.train_fraction,
-                             settings.val_fraction)
+    write_json_atomic(root / ".synth_settings.json", _settings_dict(settings))
+    splits = settings.split_labels()
     jobs = [(str(root), splits[i], i, asdict(settings)) for i in range(settings.scenes)]
     t0 = time.perf_counter()
     results = []
@@ -183,7 +222,7 @@ def build_dataset(out, settings: SynthSettings, *, workers: int = 1, progress: b
         "format_version": FORMAT_VERSION,
         "jaxmotion_version": __version__,
         "kind": "synthetic (jaxmotion built-in world; not HUMANISE)",
-        "settings": asdict(settings),
+        "settings": _settings_dict(settings),
         "seed": settings.seed,
         "scenes": {sp: splits.count(sp) for sp in ("train", "val", "test")},
         "samples": counts,

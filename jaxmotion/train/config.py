@@ -67,6 +67,8 @@ class TrainConfig:
       max_frames: motions are padded to this many frames (with a frame mask).
       max_samples: use only the first N training samples (None: all).
       crop / affordance: the training crops and affordance maps (see jaxmotion.data.config).
+      loader_workers: processes that prepare training batches (0: one background thread);
+        the batches are the same with any number.
     """
 
     task: str = ""
@@ -84,6 +86,7 @@ class TrainConfig:
     progress: bool = True
     max_frames: int = 120
     max_samples: int | None = None
+    loader_workers: int = 0
     crop: CropConfig = dataclasses.field(default_factory=CropConfig)
     affordance: AffordanceConfig = dataclasses.field(default_factory=AffordanceConfig)
     optim: OptimConfig = dataclasses.field(default_factory=OptimConfig)

@@ -16,7 +16,12 @@ model, yields host batches, and computes the loss. This module does the rest:
 - Orbax checkpoints every ``ckpt_every`` steps keeping ``keep_checkpoints``;
   ``config.json``, ``metrics.jsonl`` and TensorBoard events in the workdir;
 - a progress bar with loss and steps/s, periodic validation loss, and a loud
-  stop (``FloatingPointError``) on a non-finite loss or gradient.
+  stop (``FloatingPointError``) on a non-finite loss or gradient;
+- optionally a *probe*: a task with ``probe_every(cfg) > 0`` scores the EMA weights
+  on fixed cases every so many steps (``probe(model, batch, key)`` returns per-case
+  metrics; its first key is the score). The run logs the means under ``grounding/``
+  and exports the best-scoring weights to ``model_best.safetensors`` (``best.json``:
+  step, score, metrics), so selection survives a resume.
 """
 
 from __future__ import annotations
@@ -127,7 +132,8 @@ def _check_compatible(workdir: Path, cfg) -> None:
     except (TypeError, ValueError, KeyError):
         pass
     free = {"steps", "resume", "workdir", "log_every", "eval_every", "ckpt_every", "progress",
-            "keep_checkpoints", "data_dir"}
+            "keep_checkpoints", "data_dir", "loader_workers", "grounding_every",
+            "grounding_cases", "grounding_steps", "grounding_guidance"}
     diff = sorted(k for k in set(old) | set(new) if k not in free and old.get(k) != new.get(k))
     if diff:
         raise ValueError(
@@ -223,6 +229,52 @@ def train(cfg, task: Task, *, on_step: Callable[[int, dict], None] | None = None
         return {"loss": loss, **aux}
 
     val = task.val_batches(cfg) if cfg.eval_every > 0 else []
+    probe_every = int(task.probe_every(cfg)) if hasattr(task, "probe_every") else 0
+    probe_data = task.probe_batches(cfg) if probe_every > 0 else []
+
+    @jax.jit
+    def probe_step(state, rngs, frozen, batch, key):
+        params = state["ema"] if decay > 0 else state["params"]
+        m = nnx.merge(graphdef, params, state["batch_stats"], _fresh_rngs(rngs, key), frozen)
+        return task.probe(m, batch, key)
+
+    best_file = workdir / "best.json"
+    if resume_step is None:
+        best_file.unlink(missing_ok=True)
+        (workdir / "model_best.safetensors").unlink(missing_ok=True)
+    best = json.loads(best_file.read_text()) if best_file.is_file() else None
+
+    def export(path, done):
+        if jax.process_index() != 0:
+            return
+        save_weights(path, state["ema"] if decay > 0 else state["params"], state["batch_stats"],
+                     {**config_to_dict(cfg), "step": done,
+                      **getattr(task, "export_config", dict)()},
+                     extra=getattr(task, "export_tensors", dict)())
+
+    def run_probe(done):
+        nonlocal best
+        sums, n = {}, 0.0
+        for i, b in enumerate(probe_data):
+            out = jax.device_get(probe_step(state, rng_state, rest,
+                                            _put_batch(b, batch_sharding, n_dev),
+                                            jax.random.fold_in(base_key, 2**30 + i)))
+            valid = b["valid"].astype(np.float64)
+            for k, v in out.items():
+                sums[k] = sums.get(k, 0.0) + float(np.sum(np.where(valid > 0, v, 0.0)))
+            n += valid.sum()
+        metrics = {f"grounding/{k}": v / max(n, 1.0) for k, v in sums.items()}
+        if writer:
+            writer.write(done, metrics)
+        score = next(iter(metrics.values()))
+        if best is None or score > best["score"]:
+            export(workdir / "model_best.safetensors", done)
+            best = {"step": done, "score": score, "metrics": metrics}
+            if jax.process_index() == 0:
+                from jaxmotion.data.format import write_json_atomic
+
+                write_json_atomic(best_file, best)
+
     writer = MetricsWriter(workdir, resume_step=resume_step) if jax.process_index() == 0 else None
     from tqdm.auto import tqdm
 
@@ -257,16 +309,11 @@ def train(cfg, task: Task, *, on_step: Callable[[int, dict], None] | None = None
                 val_loss = float(np.mean([v["loss"] for v in vals]))
                 if writer:
                     writer.write(done, {"val_loss": val_loss})
+            if probe_data and (done % probe_every == 0 or done == cfg.steps):
+                run_probe(done)
             if done % cfg.ckpt_every == 0 or done == cfg.steps:
                 ckpt.save(done, state)
-                if jax.process_index() == 0:
-                    extra = getattr(task, "export_tensors", dict)()
-                    save_weights(workdir / "model.safetensors",
-                                 state["ema"] if decay > 0 else state["params"],
-                                 state["batch_stats"],
-                                 {**config_to_dict(cfg), "step": done,
-                                  **getattr(task, "export_config", dict)()},
-                                 extra=extra)
+                export(workdir / "model.safetensors", done)
             if on_step is not None:
                 on_step(done, m)
             bar.update()

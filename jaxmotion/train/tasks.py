@@ -111,8 +111,9 @@ class _DataTask:
 
     def train_batches(self, cfg, start_step: int):
         ds = _dataset(cfg, "train")
-        return (self._prepare(cfg, b) for b in ds.iterate(cfg.batch_size, cfg.seed,
-                                                          start_step=start_step))
+        return (self._prepare(cfg, b) for b in ds.iterate(
+            cfg.batch_size, cfg.seed, start_step=start_step,
+            workers=int(getattr(cfg, "loader_workers", 0))))
 
     def val_batches(self, cfg) -> list[dict]:
         try:
@@ -211,7 +212,52 @@ class ADMTask(_DataTask):
         adm = make_adm(cfg.model, rngs=rngs)
         if getattr(cfg, "init_from", ""):
             _init_adm(adm, cfg)
+        self.sigma = float(cfg.affordance.sigma)
         return ADMNet(backbone, adm)
+
+    # -- selection by grounding (the training loop's probe) ---------------------------------
+    def probe_every(self, cfg) -> int:
+        return int(getattr(cfg, "grounding_every", 0))
+
+    def probe_batches(self, cfg) -> list[dict]:
+        """The first ``grounding_cases`` val crops (as the paper protocol crops them), in
+        batches of ``batch_size``; the last is padded with ``valid`` False rows."""
+        from jaxmotion.sample import SamplerSpec, load_cases
+
+        self.probe_spec = SamplerSpec("ddim", int(cfg.grounding_steps),
+                                      guidance=float(cfg.grounding_guidance))
+        cases, _ = load_cases(cfg.data_dir, "val", config_to_dict(cfg),
+                              num_cases=int(cfg.grounding_cases), seed=0)
+        n_dev = len(jax.devices())
+        bs = max(n_dev, cfg.batch_size - cfg.batch_size % n_dev)
+        batches = []
+        for lo in range(0, len(cases), bs):
+            part = cases[lo:lo + bs]
+            rows = part + [part[0]] * (bs - len(part))
+            raw = {k: np.stack([c[k] for c in rows]) for k in
+                   ("points", "colors", "target_mask", "target_class_mask")}
+            raw["valid"] = np.arange(bs) < len(part)
+            raw["text"] = [c["text"] for c in rows]
+            batches.append(self._prepare(cfg, raw))
+        return batches
+
+    def probe(self, model, batch, key) -> dict:
+        """Per crop: whether the EMA ADM's map reaches the target instance
+        (``instance_success@0.3``), its class (``class_success@0.3``), and the class's mean
+        distance (``min_dist``, metres), as :mod:`jaxmotion.eval.grounding` defines them."""
+        from jaxmotion.eval.grounding import affordance_grounding
+        from jaxmotion.geometry.affordance import affordance_to_distance
+        from jaxmotion.sample import adm_map_one
+
+        keys = jax.random.split(key, batch["points"].shape[0])
+        maps = jax.vmap(lambda k, p, c, t: adm_map_one(
+            model, self.schedule, (self.mean, self.std), k, p, c, t, self.probe_spec))(
+            keys, batch["points"], batch["colors"], _text_condition(batch))
+        d = affordance_to_distance(maps, self.sigma)
+        inst = jax.vmap(affordance_grounding)(d, batch["target_mask"])
+        cls = jax.vmap(affordance_grounding)(d, batch["target_class_mask"])
+        return {"instance_success@0.3": inst["success@0.3"],
+                "class_success@0.3": cls["success@0.3"], "min_dist": cls["min_dist"]}
 
     def export_tensors(self) -> dict:
         # The frozen backbone travels inside ADM's weights file: one self-contained file.

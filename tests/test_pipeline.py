@@ -62,6 +62,7 @@ def test_adm_selection_by_grounding(runs, tmp_path):
     best = json.loads((tmp_path / "adm" / "best.json").read_text())
     scores = [r["grounding/instance_success@0.3"] for r in probes]
     assert best["score"] == max(scores) and best["step"] == probes[scores.index(max(scores))]["step"]
+    assert best["score"] == best["metrics"]["grounding/instance_success@0.3"]
     net, _, _ = load_adm(tmp_path / "adm" / "model_best.safetensors")
     assert net.adm is not None
     res = train(cfg := load_config("configs/adm.py", [*args[:2], "steps=25", *args[3:]]),

@@ -19,7 +19,8 @@ model, yields host batches, and computes the loss. This module does the rest:
   stop (``FloatingPointError``) on a non-finite loss or gradient;
 - optionally a *probe*: a task with ``probe_every(cfg) > 0`` scores the EMA weights
   on fixed cases every so many steps (``probe(model, batch, key)`` returns per-case
-  metrics; its first key is the score). The run logs the means under ``grounding/``
+  metrics; the one named ``task.probe_score`` is the score). The run logs the means under
+  ``grounding/``
   and exports the best-scoring weights to ``model_best.safetensors`` (``best.json``:
   step, score, metrics), so selection survives a resume.
 """
@@ -266,7 +267,7 @@ def train(cfg, task: Task, *, on_step: Callable[[int, dict], None] | None = None
         metrics = {f"grounding/{k}": v / max(n, 1.0) for k, v in sums.items()}
         if writer:
             writer.write(done, metrics)
-        score = next(iter(metrics.values()))
+        score = metrics[f"grounding/{task.probe_score}"]
         if best is None or score > best["score"]:
             export(workdir / "model_best.safetensors", done)
             best = {"step": done, "score": score, "metrics": metrics}

@@ -216,6 +216,8 @@ class ADMTask(_DataTask):
         return ADMNet(backbone, adm)
 
     # -- selection by grounding (the training loop's probe) ---------------------------------
+    probe_score = "instance_success@0.3"  # what model_best.safetensors maximises
+
     def probe_every(self, cfg) -> int:
         return int(getattr(cfg, "grounding_every", 0))
 

@@ -107,6 +107,11 @@ def test_stats_and_preview_from_the_command_line(built, tmp_path, capsys):
     with np.load(root / "stats.npz") as st:
         assert st["motion_mean"].shape == (66,) and np.all(st["affordance_std"] > 0)
     assert len(ds) == 2
+    # --split-scenes grows the build in place: one more training room, val and test unchanged
+    assert main(["synth", "--out", str(root), "--scenes", "4", "--split-scenes", "3",
+                 "--per-scene", "2", "--seed", "3", "--points", "6000", "--no-stats"]) == 0
+    assert "'train': 4, 'val': 2, 'test': 2" in capsys.readouterr().out
+    assert len(Dataset(root, "train")) == 4
 
 
 def test_demo(tmp_path, capsys):

@@ -427,14 +427,14 @@ def _load_cases(data_dir, split, amdm_config, num_cases, seed, regions, adm_conf
                           centres=None if regions is None else [r["centre"] for r in regions])
     if regions is None:
         return cases
-    for i, c in enumerate(cases):
-        c["chosen_mask"] = c["instance"] == (-2 if regions[i]["chosen"] is None
-                                             else regions[i]["chosen"])
-        if exclude:
-            from jaxmotion.generation import same_class_others
+    from jaxmotion.generation import same_class_others
 
-            c["exclude"] = np.isin(c["instance"],
-                                   same_class_others(c["objects"], regions[i]["chosen"]))
+    for i, c in enumerate(cases):
+        chosen = regions[i]["chosen"]
+        c["chosen_mask"] = (np.zeros(len(c["instance"]), bool) if chosen is None
+                            else c["instance"] == chosen)
+        if exclude:  # as generate does (its step 3)
+            c["exclude"] = np.isin(c["instance"], same_class_others(c["objects"], chosen))
     return cases
 
 

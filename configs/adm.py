@@ -51,6 +51,15 @@ class ADMTrainConfig(TrainConfig):
     diffusion: DiffusionConfig = dataclasses.field(
         default_factory=lambda: DiffusionConfig(schedule="cosine", steps=500, cond_drop_prob=0.1))
 
+    def __post_init__(self):
+        super().__post_init__()
+        if self.grounding_every < 0 or self.grounding_cases < 1 or self.grounding_steps < 1 \
+                or not self.grounding_guidance > 0:
+            raise ValueError(
+                "grounding_every must be >= 0 (0: off), grounding_cases and grounding_steps >= 1 "
+                f"and grounding_guidance > 0; got {self.grounding_every}, {self.grounding_cases}, "
+                f"{self.grounding_steps}, {self.grounding_guidance}")
+
 
 PRESETS: dict[str, dict[str, Any]] = {
     "default": {"crop.num_points": 2048, "optim.lr": 2e-4, "optim.warmup_steps": 200},

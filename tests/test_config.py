@@ -376,3 +376,14 @@ def test_format_and_flatten():
 def test_no_jax_import():
     code = "import sys, jaxmotion.config, configs.data; assert 'jax' not in sys.modules"
     subprocess.run([sys.executable, "-c", textwrap.dedent(code)], cwd=REPO, check=True)
+
+
+def test_grounding_and_loader_settings_are_checked():
+    from jaxmotion.config import load_config
+
+    for bad in ("grounding_cases=0", "grounding_every=-1", "grounding_steps=0",
+                "grounding_guidance=0", "loader_workers=-1"):
+        with pytest.raises(ValueError, match=bad.split("=")[0]):
+            load_config("configs/adm.py", [bad])
+    cfg = load_config("configs/adm.py", ["grounding_every=500", "loader_workers=4"])
+    assert cfg.grounding_every == 500 and cfg.loader_workers == 4

@@ -70,6 +70,14 @@ def test_adm_selection_by_grounding(runs, tmp_path):
     assert res.resumed_from == 20
     again = json.loads((tmp_path / "adm" / "best.json").read_text())
     assert again["score"] >= best["score"] and (again["step"] in (best["step"], 25))
+    # a dataset without a val split: a clear error naming the setting
+    import shutil
+
+    shutil.copytree(out["data"], tmp_path / "noval", ignore=shutil.ignore_patterns("val"))
+    cfg = load_config("configs/adm.py", [f"data_dir={tmp_path / 'noval'}", *args[1:2],
+                                         f"workdir={tmp_path / 'adm2'}", *args[4:]])
+    with pytest.raises(ValueError, match="grounding_every=10 scores the ADM on the val split"):
+        train(cfg, get_task(cfg))
 
 
 def test_sampling_shapes_and_world_frame(runs, tmp_path):

@@ -96,3 +96,5 @@ class TrainConfig:
             raise ValueError(f"steps ({self.steps}) and batch_size ({self.batch_size}) must be >= 1")
         if self.log_every < 1 or self.ckpt_every < 1 or self.eval_every < 0:
             raise ValueError("log_every and ckpt_every must be >= 1 and eval_every >= 0")
+        if self.loader_workers < 0:
+            raise ValueError(f"loader_workers must be >= 0 (0: one thread), got {self.loader_workers}")

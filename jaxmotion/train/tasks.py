@@ -228,8 +228,13 @@ class ADMTask(_DataTask):
 
         self.probe_spec = SamplerSpec("ddim", int(cfg.grounding_steps),
                                       guidance=float(cfg.grounding_guidance))
-        cases, _ = load_cases(cfg.data_dir, "val", config_to_dict(cfg),
-                              num_cases=int(cfg.grounding_cases), seed=0)
+        try:
+            cases, _ = load_cases(cfg.data_dir, "val", config_to_dict(cfg),
+                                  num_cases=int(cfg.grounding_cases), seed=0)
+        except FileNotFoundError as err:
+            raise ValueError(f"grounding_every={cfg.grounding_every} scores the ADM on the val "
+                             f"split, and {cfg.data_dir} has none ({err}); set "
+                             "grounding_every=0 or use a dataset with a val split") from err
         n_dev = len(jax.devices())
         bs = max(n_dev, cfg.batch_size - cfg.batch_size % n_dev)
         batches = []

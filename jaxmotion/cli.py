@@ -280,7 +280,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--steps", type=int, default=20,
                    help="DDIM steps of the motion stage (default 20)")
     p.add_argument("--adm-steps", type=int, default=None, metavar="N",
-                   help="DDIM steps of the affordance stage (default 10)")
+                   help="DDIM steps of the affordance stage (default 5)")
     p.add_argument("--guidance", type=_guidance_arg, default=None, metavar="G|ADM,AMDM",
                    help="classifier-free guidance scale of both stages, or one per stage "
                    "(default: the shipped checkpoints' tuned scales; 1 = no guidance)")
@@ -296,7 +296,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--adm-candidates", type=int, default=None, metavar="C",
                    help="once the target object is known (--object, or found from the text), "
                    "draw C affordance maps per sample and keep the one that lights it most "
-                   "(default 8; 1 = one map, ~0.8 s faster)")
+                   "(default 16, at most 32; 1 = one map, ~0.8 s faster)")
     p.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
     p.add_argument("--checkpoints", nargs="+", default=None, metavar="PATH",
                    help="a folder with adm.safetensors and amdm.safetensors, or the ADM and "

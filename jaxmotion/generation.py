@@ -40,7 +40,7 @@ Steps:
    map's clean estimate is set to "no affordance" on their points (``exclude`` of
    :meth:`~jaxmotion.sample.AffordancePipeline.sample_affordance`), so the sampler puts the
    map elsewhere; the shipped ADM otherwise often lights another chair than the chosen one.
-   The ADM also draws ``adm_candidates`` maps per sample (default 8) and the one lighting the
+   The ADM also draws ``adm_candidates`` maps per sample (default 16) and the one lighting the
    target most is kept. (Neither for a room-view ADM, whose map comes from its view.)
 4. **Body**: SMPL-X parameters fitted to the joints (:func:`jaxmotion.body.fit_joints_to_body`).
 
@@ -91,11 +91,13 @@ DEFAULT_GUIDANCE: tuple[float, float] = (5.0, 1.0)
 DEFAULT_CONSISTENCY: float = 0.5
 #: ADM maps drawn per sample once the target object is known; the one lighting it most is
 #: kept (docs/results.md, "The generate protocol": on 384 validation cases the whole-job goal
-#: distance is 0.40 m with the best of 4 maps at 20 steps, 0.33 m with the best of 8 at 10).
-DEFAULT_ADM_CANDIDATES: int = 8
-#: DDIM steps of the affordance stage (the motion stage has ``steps``, default 20): at 10 steps
-#: the ADM's maps light the target as often as at 20, so the time buys more candidates.
-DEFAULT_ADM_STEPS: int = 10
+#: distance is 0.40 m with the best of 4 maps at 20 steps, 0.33 m with the best of 8 at 10,
+#: 0.30 m with the best of 16 at 5, in the same time).
+DEFAULT_ADM_CANDIDATES: int = 16
+#: DDIM steps of the affordance stage (the motion stage has ``steps``, default 20): how often
+#: the ADM's maps light the target depends on how many are drawn, not on their steps (3 to 20),
+#: so the time buys candidates.
+DEFAULT_ADM_STEPS: int = 5
 DEMO_SEED = 22  # a dining room (L-shaped, 4.3 x 6.0 m) with one table and one chair by it
 DEMO_POINTS = 60_000
 OUTPUT_FILES = ("motion.npz", "motion.bvh", "motion.glb", "motion.gif", "viewer.html")
@@ -580,8 +582,8 @@ def generate(
         (module docstring, step 2).
       adm_candidates: once the target object is known (``object_id``, or chosen from the
         text), the ADM draws this many maps per sample and the one that lights the target
-        most is kept (step 3); 1 = one map; None: :data:`DEFAULT_ADM_CANDIDATES` (8). Costs
-        one more ADM pass per candidate (~0.1 s each at 10 steps on 2 CPU cores).
+        most is kept (step 3); 1 = one map (up to 32); None: :data:`DEFAULT_ADM_CANDIDATES` (16).
+        Costs one more ADM pass per candidate (~0.05 s each at 5 steps on 2 CPU cores).
       checkpoints: None (shipped), a folder with ``adm.safetensors`` / ``amdm.safetensors``, or
         an ``(adm, amdm)`` pair of workdirs / files.
       num_points: surface samples taken from a mesh (default 100k); point clouds keep theirs.
@@ -621,8 +623,8 @@ def generate(
         raise GenerateError(f"samples={samples} is more than 256; generate in several calls")
     adm_candidates = DEFAULT_ADM_CANDIDATES if adm_candidates is None else adm_candidates
     if not isinstance(adm_candidates, (int, np.integer)) or isinstance(adm_candidates, bool) \
-            or not 1 <= adm_candidates <= 16:
-        raise GenerateError(f"adm_candidates must be an integer in [1, 16], got "
+            or not 1 <= adm_candidates <= 32:
+        raise GenerateError(f"adm_candidates must be an integer in [1, 32], got "
                             f"{adm_candidates!r}")
     if grounding not in ("auto", "adm"):
         raise GenerateError(f"grounding must be 'auto' or 'adm', got {grounding!r}")

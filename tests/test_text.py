@@ -232,3 +232,35 @@ def test_cache_with_real_encoder(encoder, tmp_path):
     cache = EmbeddingCache(tmp_path)
     np.testing.assert_array_equal(cache.encode(encoder, SENTENCES), direct)
     assert cache.misses == 0 and cache.hits == len(SENTENCES)
+
+
+def test_dataset_cache_dir_falls_back_to_workdir_when_read_only(tmp_path, monkeypatch):
+    """Every task and the evaluator put a dataset's text cache in one place: under the
+    dataset, or under the run's workdir when the dataset cannot be written."""
+    data, work = tmp_path / "data", tmp_path / "run"
+    data.mkdir()
+    assert jtext.dataset_cache_dir(data, work, "text", "text_cache") == data / ".cache" / "text"
+    assert (data / ".cache" / "text").is_dir()
+
+    real_mkdir = Path.mkdir
+
+    def refuse(self, *a, **k):  # a read-only dataset (chmod does not stop root)
+        if data in self.parents:
+            raise PermissionError(13, "Read-only file system", str(self))
+        return real_mkdir(self, *a, **k)
+
+    monkeypatch.setattr(Path, "mkdir", refuse)
+    got = jtext.dataset_cache_dir(data, work, "text-tokens", "text_token_cache")
+    assert got == work / "text_token_cache"
+
+    from jaxmotion.config import load_config
+    from jaxmotion.eval.evaluator import EvaluatorTask
+    from jaxmotion.train.tasks import _DataTask
+
+    cfg = load_config("configs/adm.py", [f"data_dir={data}", f"workdir={work}"])
+    assert _DataTask._cache_dir(cfg, "text", "text_cache") == work / "text_cache"
+    ecfg = load_config("configs/evaluator.py", [f"data_dir={data}", f"workdir={work}"])
+    out = EvaluatorTask()._prepare(ecfg, {"joints": np.zeros((1, 4, 22, 3), np.float32),
+                                          "mask": np.ones((1, 4), bool), "text": ["a person sits"]})
+    assert out["text_emb"].shape == (1, 384)
+    assert len(list((work / "text_cache").glob("*.npz"))) == 1  # written where the tasks look

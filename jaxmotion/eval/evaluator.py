@@ -96,15 +96,11 @@ class EvaluatorTask:
 
     def _prepare(self, cfg, raw: dict) -> dict:
         if not hasattr(self, "_cache"):
-            from jaxmotion.text import EmbeddingCache, load_text_encoder
+            from jaxmotion.text import EmbeddingCache, dataset_cache_dir, load_text_encoder
 
             self._encoder = load_text_encoder(TEXT_ENCODER)
-            cache_dir = Path(cfg.data_dir) / ".cache" / "text"
-            try:
-                cache_dir.mkdir(parents=True, exist_ok=True)
-            except OSError:  # read-only dataset
-                cache_dir = Path(cfg.workdir) / "text_cache"
-            self._cache = EmbeddingCache(cache_dir)
+            self._cache = EmbeddingCache(dataset_cache_dir(cfg.data_dir, cfg.workdir, "text",
+                                                           "text_cache"))
         emb = np.asarray(self._cache.encode(self._encoder, raw["text"]), np.float32)
         return {"joints": raw["joints"], "mask": raw["mask"], "text_emb": emb}
 

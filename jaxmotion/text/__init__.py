@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import threading
 
-from jaxmotion.text.cache import EmbeddingCache, TokenCache, cache_key, encode_cached, pad_tokens
+from jaxmotion.text.cache import (EmbeddingCache, TokenCache, cache_key, dataset_cache_dir,
+                                  encode_cached, pad_tokens)
 from jaxmotion.text.minilm import PIP_COMMAND, MiniLM, TextEncoder, load_minilm, minilm_dir
 
 __all__ = [
@@ -26,6 +27,7 @@ __all__ = [
     "TextEncoder",
     "TokenCache",
     "cache_key",
+    "dataset_cache_dir",
     "encode_cached",
     "load_text_encoder",
     "minilm_dir",

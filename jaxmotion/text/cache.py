@@ -24,7 +24,8 @@ import numpy as np
 
 from jaxmotion._atomic import atomic_open
 
-__all__ = ["EmbeddingCache", "TokenCache", "cache_key", "encode_cached", "pad_tokens"]
+__all__ = ["EmbeddingCache", "TokenCache", "cache_key", "dataset_cache_dir", "encode_cached",
+           "pad_tokens"]
 
 
 def cache_key(model_name: str, checksum: str, text: str) -> str:
@@ -164,6 +165,18 @@ class EmbeddingCache(_ShardCache):
         for i, k in enumerate(keys):
             out[i] = found[k]
         return out
+
+
+def dataset_cache_dir(data_dir, workdir, name: str, fallback: str) -> Path:
+    """Where a training run keeps a text cache: ``<data_dir>/.cache/<name>``, shared by every
+    run on the dataset, or ``<workdir>/<fallback>`` when the dataset is read-only. Every task
+    and the evaluator go through this, so they read and fill the same caches."""
+    cache_dir = Path(data_dir) / ".cache" / name
+    try:
+        cache_dir.mkdir(parents=True, exist_ok=True)
+    except OSError:  # read-only dataset
+        cache_dir = Path(workdir) / fallback
+    return cache_dir
 
 
 def encode_cached(encoder, texts, cache_dir) -> np.ndarray:

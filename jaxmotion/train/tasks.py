@@ -75,13 +75,10 @@ class _DataTask:
     @staticmethod
     def _cache_dir(cfg, name: str, fallback: str) -> Path:
         """``<data_dir>/.cache/<name>``, or ``<workdir>/<fallback>`` when the dataset is
-        read-only."""
-        cache_dir = Path(cfg.data_dir) / ".cache" / name
-        try:
-            cache_dir.mkdir(parents=True, exist_ok=True)
-        except OSError:
-            cache_dir = Path(cfg.workdir) / fallback
-        return cache_dir
+        read-only (:func:`jaxmotion.text.dataset_cache_dir`)."""
+        from jaxmotion.text.cache import dataset_cache_dir
+
+        return dataset_cache_dir(cfg.data_dir, cfg.workdir, name, fallback)
 
     def _text(self, cfg):
         if not hasattr(self, "_encoder"):

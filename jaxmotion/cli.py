@@ -312,7 +312,8 @@ def build_parser() -> argparse.ArgumentParser:
         "them: goal distance, contact, non-collision, APD, foot skating (SMPL-X bodies fitted "
         "to the joints, or --joints-only), affordance grounding of the ADM maps, and with "
         "--evaluator the text-motion metrics (FID, R-precision, ...). Writes results.json and "
-        "results.md (mean ± 95 % interval) to --out.",
+        "results.md (mean ± 95 % interval) to --out, and cases.jsonl: each case's metrics, to "
+        "find where a model fails.",
     )
     p.add_argument("--data", required=True, help="dataset folder (jaxmotion synth)")
     p.add_argument("--model", action="append", required=True, metavar="NAME=ADM,AMDM[,SAMPLER][,OPT=G]",

@@ -118,6 +118,14 @@ def test_runner_over_tiny_runs(tiny_runs, tmp_path, body):
     assert md == format_markdown(rep) and "| two | DDIM-2 |" in md and "Table 3" in md
     gt = rep["ground_truth"]
     assert gt["non_collision"] > 0.9 and "| dataset motions |" in md
+    # the per-case rows behind the means: 2 replications x 2 cases, in cases.jsonl only
+    assert "cases" not in m
+    rows = [json.loads(x) for x in (tmp_path / "cases.jsonl").read_text().splitlines()]
+    assert [(r["replication"], r["case"]) for r in rows] == [(0, 0), (0, 1), (1, 0), (1, 1)]
+    assert {r["model"] for r in rows} == {"two"} and all(r["file"].endswith(".npz") for r in rows)
+    for k in ("goal_distance", "contact", "instance_success@0.3"):
+        means = [np.mean([r[k] for r in rows if r["replication"] == i]) for i in (0, 1)]
+        np.testing.assert_allclose(means, [x[k] for x in m["replications"]], rtol=1e-6)
 
 
 def test_same_seed_same_numbers(tiny_runs):

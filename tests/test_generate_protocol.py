@@ -1,6 +1,8 @@
 """`jaxmotion eval --protocol generate` (crops where generate puts them) and the ADM's
 ``exclude`` (the other objects of the target's class left out of its map)."""
 
+import json
+
 import jax
 import numpy as np
 import pytest
@@ -169,6 +171,10 @@ def test_runner_generate_protocol(tiny_runs, tmp_path):
             "adm", "--out", str(tmp_path)]
     assert main(args) == 0
     assert "grounding `adm`" in (tmp_path / "results.md").read_text()
+    rows = [json.loads(x) for x in (tmp_path / "cases.jsonl").read_text().splitlines()]
+    assert len(rows) == 2 and all(r["region_how"] for r in rows)
+    hit = json.loads((tmp_path / "results.json").read_text())["models"]["two"]["regions"]["hit"]
+    assert np.mean([r["region_object"] == r["target_object"] for r in rows]) == hit
 
 
 def test_best_of_keeps_the_map_that_lights_the_target(tiny_runs):

@@ -350,7 +350,7 @@ def evaluate(
             gt_maps = np.asarray(jax.device_get(_batched_affordance(pipe.sigma)(
                 np.stack([c["points"] for c in cases]), np.stack([c["gt"] for c in cases]),
                 np.stack([c["mask"] for c in cases]))))
-        reps, fit_errors = [], []
+        reps, fit_errors, case_rows = [], [], []
         for r in range(replications):
             key = jax.random.fold_in(jax.random.key(seed), r)
             rows = [(ci, k) for ci in range(len(cases)) for k in range(samples)]
@@ -376,6 +376,9 @@ def evaluate(
                                     fit_errors, bar, vertex_stride)
             keys = sorted({k for row in per_case for k in row})
             rep = {k: float(np.nanmean([row.get(k, np.nan) for row in per_case])) for k in keys}
+            case_rows += [_case_row(spec.name, r, ci, cases[ci], row,
+                                    None if regions is None else regions[ci])
+                          for ci, row in enumerate(per_case)]
             if evaluator is not None:
                 from jaxmotion.eval.evaluator import text_motion_scores
 
@@ -399,6 +402,7 @@ def evaluate(
             "summary": {k: _ci([rep.get(k, np.nan) for rep in reps]) for k in keys},
             "body_fit_error_m": float(np.mean(fit_errors)) if fit_errors else None,
             "seconds": time.perf_counter() - t_model,
+            "cases": case_rows,
         }
         if regions is not None:
             report["models"][spec.name]["regions"] = _region_summary(regions)
@@ -436,6 +440,18 @@ def _load_cases(data_dir, split, amdm_config, num_cases, seed, regions, adm_conf
         if exclude:  # as generate does (its step 3)
             c["exclude"] = np.isin(c["instance"], same_class_others(c["objects"], chosen))
     return cases
+
+
+def _case_row(model: str, replication: int, index: int, case: dict, metrics: dict,
+              region: dict | None) -> dict:
+    """One line of ``cases.jsonl``: which case (index, sample file, action, text), its metrics
+    (means over its K samples) and, under the generate protocol, the region's object."""
+    row = {"model": model, "replication": replication, "case": index, "file": case["file"],
+           "action": case["action"], "text": case["text"]}
+    if region is not None:
+        row.update(region_object=region["chosen"], target_object=region["target"],
+                   region_how=region["how"])
+    return {**row, **metrics}
 
 
 def _region_summary(regions) -> dict:
@@ -529,13 +545,23 @@ def format_markdown(report: dict) -> str:
 
 
 def write_report(report: dict, out) -> tuple[Path, Path]:
-    """Write ``out/results.json`` and ``out/results.md`` (atomically)."""
+    """Write ``out/results.json``, ``out/results.md`` and ``out/cases.jsonl`` (atomically).
+
+    ``cases.jsonl`` holds one JSON line per model, replication and case (see
+    :func:`_case_row`): the per-case metrics behind the means, to find where a model fails;
+    ``results.json`` holds everything else."""
     from jaxmotion._atomic import atomic_open
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    models = {name: {k: v for k, v in m.items() if k != "cases"}
+              for name, m in report["models"].items()}
+    with atomic_open(out / "cases.jsonl", "w") as f:
+        for m in report["models"].values():
+            for row in m.get("cases", []):
+                f.write(json.dumps(row) + "\n")
     with atomic_open(out / "results.json", "w") as f:
-        json.dump(report, f, indent=2)
+        json.dump({**report, "models": models}, f, indent=2)
     with atomic_open(out / "results.md", "w") as f:
         f.write(format_markdown(report))
     return out / "results.json", out / "results.md"

@@ -273,7 +273,8 @@ class AffordancePipeline:
 
     def sample(self, key, points, colors, text_emb, mask, *, adm=SamplerSpec(steps=50),
                amdm=SamplerSpec(steps=50), affordance=None, view=None, exclude=None,
-               target=None, candidates: int = 1) -> dict:
+               target=None, candidates: int = 1, motion_candidates: int = 1,
+               anchor_first=None) -> dict:
         """Both stages: affordance from scene + text, then motion from affordance + text.
 
         ``affordance``: maps ``[B,N,6]`` in [0, 1] to use instead of sampling the ADM (e.g. the
@@ -284,8 +285,15 @@ class AffordancePipeline:
         to the crop's points. ``exclude``: ``[B,N]`` crop points the ADM's map must leave out
         (:meth:`sample_affordance`; not with ``view``). ``target`` ``[B,N]`` bool, the points of
         a known target object, and ``candidates`` C > 1: the ADM draws C maps per example and
-        keeps the one that lights the target most (:meth:`best_of`)."""
+        keeps the one that lights the target most (:meth:`best_of`). ``motion_candidates`` M > 1
+        (with ``target``): the AMDM draws M motions per example from the same map and keeps the
+        one that comes closest to the target at the anchor frame (:meth:`best_motion`;
+        ``anchor_first [B]`` bool, default all False: the last frame)."""
         ka, km = jax.random.split(key)
+        if motion_candidates > 1 and target is None:
+            raise ValueError("motion_candidates > 1 keeps the motion that comes closest to a "
+                             "known target: pass target=[B, N] points of it, or "
+                             "motion_candidates=1")
         if candidates > 1 and (target is None or view is not None or affordance is not None):
             raise ValueError("candidates > 1 picks among the ADM's maps on the crop by how much "
                              "they light a known target: pass target=[B, N] points of it (and "
@@ -293,8 +301,17 @@ class AffordancePipeline:
         if exclude is not None and view is not None:
             raise ValueError("exclude applies to an ADM on the crop; a room-view ADM's map is "
                              "carried from its view: leave exclude out")
+        def motion(feats):  # [B,N,C] scene features the AMDM reads
+            joints = self.sample_motion(km, points, feats, text_emb, mask, amdm)
+            if motion_candidates > 1:
+                first = (jnp.zeros(points.shape[0], bool) if anchor_first is None
+                         else anchor_first)
+                joints = self.best_motion(km, joints, points, feats, text_emb, mask, amdm,
+                                          target, first, motion_candidates)
+            return joints
+
         if self.amdm.cfg.scene_input == "rgb":
-            return {"joints": self.sample_motion(km, points, colors, text_emb, mask, amdm)}
+            return {"joints": motion(colors)}
         out = {}
         if affordance is not None:
             aff = affordance
@@ -311,8 +328,7 @@ class AffordancePipeline:
             if candidates > 1:
                 aff = self.best_of(ka, aff, points, colors, text_emb, adm, exclude, target,
                                    candidates)
-        return {**out, "affordance": aff,
-                "joints": self.sample_motion(km, points, aff, text_emb, mask, amdm)}
+        return {**out, "affordance": aff, "joints": motion(aff)}
 
     def best_of(self, key, first, points, colors, text_emb, spec, exclude, target,
                 candidates: int):
@@ -322,7 +338,7 @@ class AffordancePipeline:
         (the score generate's region choice uses). An example with no target point keeps
         ``first``."""
         b, m = points.shape[0], int(candidates) - 1
-        rep = lambda x: jax.tree.map(lambda a: jnp.repeat(jnp.asarray(a), m, axis=0), x)  # noqa: E731
+        rep = functools.partial(_repeat, m=m)
         more = self.sample_affordance(jax.random.fold_in(key, 1), rep(points), rep(colors),
                                       rep(text_emb), spec,
                                       None if exclude is None else rep(exclude))
@@ -332,6 +348,32 @@ class AffordancePipeline:
         best = jnp.argmax(score, axis=1)  # ties (no target): the first
         return jnp.take_along_axis(maps, best[:, None, None, None], axis=1)[:, 0]
 
+    def best_motion(self, key, first, points, feats, text_emb, mask, spec, target, anchor_first,
+                    candidates: int):
+        """Of ``candidates`` motions per example drawn from the same scene features ``feats``
+        (the affordance maps, or the colours of a one-stage AMDM) (``first``
+        ``[B,T,22,3]``, drawn with ``key``, and ``candidates − 1`` more drawn with
+        ``fold_in(key, 1)``), the one whose body comes closest to ``target`` ``[B,N]`` (the
+        points of a known target object) at the anchor frame: the first valid frame where
+        ``anchor_first [B]`` (getting up from the object,
+        :func:`jaxmotion.scene.instructions.anchor_is_first`), else the last. Closeness is
+        the smallest distance between a joint and a target point. An example with no target
+        point keeps ``first``."""
+        b, m = points.shape[0], int(candidates) - 1
+        rep = functools.partial(_repeat, m=m)
+        more = self.sample_motion(jax.random.fold_in(key, 1), rep(points), rep(feats),
+                                  rep(text_emb), rep(mask), spec)
+        motions = jnp.concatenate([first[:, None], more.reshape(b, m, *first.shape[1:])], axis=1)
+        mask = jnp.asarray(mask, bool)
+        t_last = mask.shape[1] - 1 - jnp.argmax(mask[:, ::-1], axis=1)
+        anchor = jnp.where(jnp.asarray(anchor_first, bool), jnp.argmax(mask, axis=1), t_last)
+        pose = jnp.take_along_axis(motions, anchor[:, None, None, None, None], axis=2)[:, :, 0]
+        d = jnp.linalg.norm(jnp.asarray(points)[:, None, :, None] - pose[:, :, None], axis=-1)
+        t = jnp.asarray(target, bool)[:, None, :, None]  # [B,1,N,1]
+        score = jnp.where(t, d, jnp.inf).min(axis=(2, 3))  # [B,C]
+        best = jnp.argmin(score, axis=1)  # ties (no target): the first
+        return jnp.take_along_axis(motions, best[:, None, None, None, None], axis=1)[:, 0]
+
     @staticmethod
     @jax.jit
     def carry(points, view_points, view_maps):
@@ -340,6 +382,12 @@ class AffordancePipeline:
         from jaxmotion.geometry import carry_field
 
         return jax.vmap(carry_field)(points, view_points, view_maps)
+
+
+def _repeat(tree, m: int):
+    """Each example of a batch (a pytree of ``[B, ...]`` arrays) ``m`` times in a row:
+    ``[B*m, ...]``, the layout of :meth:`AffordancePipeline.best_of`'s extra draws."""
+    return jax.tree.map(lambda a: jnp.repeat(jnp.asarray(a), m, axis=0), tree)
 
 
 def _tile(tree, b):

@@ -202,6 +202,48 @@ def test_best_of_keeps_the_map_that_lights_the_target(tiny_runs):
         pipe.sample(key, pts, col, emb, mask, adm=spec, amdm=spec, candidates=2)
 
 
+def test_best_motion_keeps_the_motion_that_reaches_the_target(tiny_runs):
+    from jaxmotion.scene.instructions import anchor_is_first
+    from jaxmotion.sample import SamplerSpec
+
+    pipe, cases, x, emb = _two_cases(tiny_runs)
+    pts, col, mask = x["points"], x["colors"], x["mask"].copy()
+    mask[1, -3:] = False  # a shorter motion: its last valid frame is not the last frame
+    spec, key = SamplerSpec("ddim", 2), jax.random.key(3)
+    target = np.stack([c["target_mask"] for c in cases])
+    aff = np.asarray(pipe.sample_affordance(key, pts, col, emb, spec))
+    first = np.asarray(pipe.sample_motion(key, pts, aff, emb, mask, spec))
+    anchor_first = np.array([False, True])
+    got = np.asarray(pipe.best_motion(key, first, pts, aff, emb, mask, spec, target,
+                                      anchor_first, 3))
+    # brute force: the two extra motions of each example, drawn as best_motion draws them
+    rep = lambda a: np.repeat(np.asarray(a), 2, axis=0)  # noqa: E731
+    more = np.asarray(pipe.sample_motion(jax.random.fold_in(key, 1), rep(pts), rep(aff),
+                                         jax.tree.map(rep, emb), rep(mask), spec))
+    more = more.reshape(2, 2, *first.shape[1:])
+    for b in range(2):
+        valid = np.flatnonzero(mask[b])
+        t = valid[0] if anchor_first[b] else valid[-1]
+        motions = [first[b], more[b, 0], more[b, 1]]
+        scores = [min(np.linalg.norm(p - j) for p in pts[b][target[b]] for j in m[t])
+                  for m in motions]
+        np.testing.assert_allclose(got[b], motions[int(np.argmin(scores))], atol=1e-6)
+    none = np.asarray(pipe.best_motion(key, first, pts, aff, emb, mask, spec,
+                                       np.zeros_like(target), anchor_first, 3))
+    np.testing.assert_array_equal(none, first)  # no target: the first motion
+    with pytest.raises(ValueError, match="known target"):
+        pipe.sample(key, pts, col, emb, mask, adm=spec, amdm=spec, motion_candidates=2)
+    # one candidate is the plain sampler, bit for bit
+    a = pipe.sample(key, pts, col, emb, mask, adm=spec, amdm=spec)
+    b = pipe.sample(key, pts, col, emb, mask, adm=spec, amdm=spec, target=target,
+                    motion_candidates=1)
+    np.testing.assert_array_equal(np.asarray(a["joints"]), np.asarray(b["joints"]))
+    assert anchor_is_first("Now get up off the chair next to the door.")
+    assert anchor_is_first("stand up") and anchor_is_first("Rise from the stool!")
+    assert not anchor_is_first("sit on the chair next to the table")
+    assert not anchor_is_first("walk up to the stool")
+
+
 def test_adm_candidates_in_eval_and_generate(tiny_runs):
     import jaxmotion
     from jaxmotion.eval.runner import parse_model

@@ -201,6 +201,15 @@ def _norm(text):
     return " " + " ".join(re.sub(r"[^a-z]+", " ", text.lower()).split()) + " "
 
 
+def anchor_is_first(text: str) -> bool:
+    """Whether the frame where the body meets the object is the motion's first (getting up
+    from it) rather than its last (walking to, sitting or lying down on it): the anchor frame
+    of the goal distance (REFERENCE_FACTS). True when the text has a stand-up verb of the
+    synthetic grammar (:data:`VERBS`) or says "stand up" / "get up"."""
+    s = _norm(text)
+    return any(f" {v} " in s for v in (*VERBS["stand_up"], "stand up", "get up"))
+
+
 def parse_instruction(text: str) -> tuple[str, Reference]:
     """(action, Reference) of an instruction made by :func:`sample_instruction`.
 
@@ -240,5 +249,5 @@ def resolve(room_or_graph, reference) -> frozenset[int]:
 
 
 __all__ = ["ACTIONS", "ACTION_TARGETS", "NoUniqueReference", "Reference", "SceneGraph",
-           "parse_instruction", "referring_options", "resolve", "sample_instruction",
+           "anchor_is_first", "parse_instruction", "referring_options", "resolve", "sample_instruction",
            "sample_task", "simple_text", "targets_for"]

@@ -146,7 +146,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
                    seed=args.seed, steps=args.steps, adm_steps=args.adm_steps,
                    guidance=args.guidance,
                    consistency=args.consistency, grounding=args.grounding,
-                   adm_candidates=args.adm_candidates, checkpoints=ckpt,
+                   adm_candidates=args.adm_candidates,
+                   motion_candidates=args.motion_candidates, checkpoints=ckpt,
                    num_points=args.points, progress=True)
     t1 = time.perf_counter()
     files = res.save(args.out, video=None if args.video == "none" else args.video)
@@ -297,6 +298,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="once the target object is known (--object, or found from the text), "
                    "draw C affordance maps per sample and keep the one that lights it most "
                    "(default 16, at most 32; 1 = one map, ~0.8 s faster)")
+    p.add_argument("--motion-candidates", type=int, default=None, metavar="M",
+                   help="once the target object is known, draw M motions per sample from its "
+                   "map and keep the one whose body comes closest to the object at the anchor "
+                   "frame (default 4, at most 16; 1 = one motion)")
     p.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
     p.add_argument("--checkpoints", nargs="+", default=None, metavar="PATH",
                    help="a folder with adm.safetensors and amdm.safetensors, or the ADM and "

@@ -41,7 +41,10 @@ Steps:
    :meth:`~jaxmotion.sample.AffordancePipeline.sample_affordance`), so the sampler puts the
    map elsewhere; the shipped ADM otherwise often lights another chair than the chosen one.
    The ADM also draws ``adm_candidates`` maps per sample (default 16) and the one lighting the
-   target most is kept. (Neither for a room-view ADM, whose map comes from its view.)
+   target most is kept. (Neither for a room-view ADM, whose map comes from its view.) Then
+   the AMDM draws ``motion_candidates`` motions from that map (default 4) and the one whose
+   body comes closest to the target at the anchor frame (the last frame; the first when the
+   text says to get up from it) is kept.
 4. **Body**: SMPL-X parameters fitted to the joints (:func:`jaxmotion.body.fit_joints_to_body`).
 
 The checkpoints default to the ones shipped in the package (``jaxmotion/assets``, trained on the
@@ -69,6 +72,7 @@ __all__ = [
     "DEFAULT_ADM_STEPS",
     "DEFAULT_CONSISTENCY",
     "DEFAULT_GUIDANCE",
+    "DEFAULT_MOTION_CANDIDATES",
     "DEFAULT_TEXT",
     "GenerateError",
     "Generation",
@@ -98,6 +102,10 @@ DEFAULT_ADM_CANDIDATES: int = 16
 #: the ADM's maps light the target depends on how many are drawn, not on their steps (3 to 20),
 #: so the time buys candidates.
 DEFAULT_ADM_STEPS: int = 5
+#: Motions drawn per sample from its map once the target object is known; the one whose body
+#: comes closest to the target at the anchor frame is kept (docs/results.md, "Best of M
+#: motions").
+DEFAULT_MOTION_CANDIDATES: int = 4
 DEMO_SEED = 22  # a dining room (L-shaped, 4.3 x 6.0 m) with one table and one chair by it
 DEMO_POINTS = 60_000
 OUTPUT_FILES = ("motion.npz", "motion.bvh", "motion.glb", "motion.gif", "viewer.html")
@@ -360,6 +368,8 @@ class Generation:
       consistency: the affordance-consistency strength used (0 = off).
       adm_candidates: ADM maps drawn per sample (the one lighting the target most kept); 1
         when the target was not known before sampling.
+      motion_candidates: motions drawn per sample from its map (the one reaching the target
+        kept); 1 when the target was not known.
       timings: seconds per stage.
     """
 
@@ -388,6 +398,7 @@ class Generation:
     excluded: tuple[int, ...] = ()
     adm_candidates: int = 1
     adm_steps: int = 0
+    motion_candidates: int = 1
 
     @property
     def num_samples(self) -> int:
@@ -436,6 +447,7 @@ class Generation:
                          excluded=np.asarray(self.excluded, np.int64),
                          adm_candidates=np.int64(self.adm_candidates),
                          adm_steps=np.int64(self.adm_steps),
+                         motion_candidates=np.int64(self.motion_candidates),
                          **({} if self.view_xyz is None else {
                              "view_xyz": self.view_xyz.astype(np.float32),
                              "view_affordance": self.view_affordance.astype(np.float16)}))
@@ -556,6 +568,7 @@ def generate(
     consistency: float | None = None,
     grounding: str = "auto",
     adm_candidates: int | None = None,
+    motion_candidates: int | None = None,
     checkpoints=None,
     num_points: int | None = None,
     fit: bool = True,
@@ -584,6 +597,10 @@ def generate(
         text), the ADM draws this many maps per sample and the one that lights the target
         most is kept (step 3); 1 = one map (up to 32); None: :data:`DEFAULT_ADM_CANDIDATES` (16).
         Costs one more ADM pass per candidate (~0.05 s each at 5 steps on 2 CPU cores).
+      motion_candidates: once the target object is known, the AMDM draws this many motions
+        per sample from its map and the one whose body comes closest to the target at the
+        anchor frame is kept (step 3); 1 = one motion (up to 16); None:
+        :data:`DEFAULT_MOTION_CANDIDATES`.
       checkpoints: None (shipped), a folder with ``adm.safetensors`` / ``amdm.safetensors``, or
         an ``(adm, amdm)`` pair of workdirs / files.
       num_points: surface samples taken from a mesh (default 100k); point clouds keep theirs.
@@ -601,6 +618,7 @@ def generate(
     from jaxmotion.data.config import CropConfig
     from jaxmotion.data.crop import CropSpec, crop_at, model_colors
     from jaxmotion.sample import SamplerSpec
+    from jaxmotion.scene.instructions import anchor_is_first
 
     xla_cache = enable_compilation_cache()
     times: dict[str, float] = {}
@@ -626,6 +644,12 @@ def generate(
             or not 1 <= adm_candidates <= 32:
         raise GenerateError(f"adm_candidates must be an integer in [1, 32], got "
                             f"{adm_candidates!r}")
+    motion_candidates = (DEFAULT_MOTION_CANDIDATES if motion_candidates is None
+                         else motion_candidates)
+    if not isinstance(motion_candidates, (int, np.integer)) \
+            or isinstance(motion_candidates, bool) or not 1 <= motion_candidates <= 16:
+        raise GenerateError(f"motion_candidates must be an integer in [1, 16], got "
+                            f"{motion_candidates!r}")
     if grounding not in ("auto", "adm"):
         raise GenerateError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
     adm_file, amdm_file = _resolve_checkpoints(checkpoints)
@@ -690,6 +714,9 @@ def generate(
                 if object_id is not None or grounding == "auto" else [])
     exclude = np.isin(room.instance[pick], excluded)
     n_cand = int(adm_candidates) if chosen is not None and not room_view else 1
+    n_mot = int(motion_candidates) if chosen is not None else 1
+    on_target = tile(room.instance[pick] == (chosen if chosen is not None else -2))
+    first = np.full(k, anchor_is_first(text))
 
     args = (np.asarray(jax.random.key_data(root)), tile(pts), tile(colors),
             jax.tree.map(lambda a: tile(a[0]), emb), np.ones((k, t_frames), bool))
@@ -704,16 +731,18 @@ def generate(
         pipe = get_pipe()
         main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]  # noqa: E731
         if room_view:
-            return lambda kd, p, c, e, m, a: pipe.sample(main(kd), p, c, e, m,
-                                                         amdm=amdm_sampler, affordance=a)
-        return lambda kd, p, c, e, m, x, t: pipe.sample(
+            return lambda kd, p, c, e, m, a, t, f: pipe.sample(
+                main(kd), p, c, e, m, amdm=amdm_sampler, affordance=a, target=t,
+                motion_candidates=n_mot, anchor_first=f)
+        return lambda kd, p, c, e, m, x, t, f: pipe.sample(
             main(kd), p, c, e, m, adm=adm_sampler, amdm=amdm_sampler, exclude=x, target=t,
-            candidates=n_cand)
+            candidates=n_cand, motion_candidates=n_mot, anchor_first=f)
 
     if not room_view:
-        args = (*args, tile(exclude), tile(room.instance[pick] == (chosen if n_cand > 1 else -2)))
+        args = (*args, tile(exclude))
+    args = (*args, on_target, first)
     res = _aot_call(aot_dir, "sample", _digest(versions, adm_sampler, amdm_sampler, n_cand,
-                                              Path(adm_file), Path(amdm_file)),
+                                              n_mot, Path(adm_file), Path(amdm_file)),
                     build_sampler, args)
     res = jax.device_get(res)
     joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
@@ -744,7 +773,7 @@ def generate(
         object_id=None if object_id is None else int(object_id), target_id=chosen,
         seed=int(seed), steps=int(steps), guidance=(adm_w, amdm_w), consistency=consistency,
         timings=times, grounding=how, excluded=tuple(excluded) if not room_view else (),
-        adm_candidates=n_cand, adm_steps=int(adm_steps),
+        adm_candidates=n_cand, adm_steps=int(adm_steps), motion_candidates=n_mot,
         view_xyz=None if view_index is None else room.xyz[view_index].astype(np.float32),
         view_affordance=None if view_maps is None else np.asarray(view_maps, np.float32),
     )
@@ -1002,7 +1031,8 @@ def summary(res: Generation) -> str:
     return json.dumps({"text": res.text, "samples": res.num_samples, "frames": int(res.mask.sum()),
                        "target_id": res.target_id, "grounding": res.grounding,
                        "excluded": list(res.excluded), "adm_candidates": res.adm_candidates,
-                       "adm_steps": res.adm_steps, "steps": res.steps,
+                       "adm_steps": res.adm_steps,
+                       "motion_candidates": res.motion_candidates, "steps": res.steps,
                        "fps": res.fps,
                        "fit_error_cm": [round(float(e) * 100, 2) for e in res.fit_error],
                        "timings_s": {k: round(v, 3) for k, v in res.timings.items()}})

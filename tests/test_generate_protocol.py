@@ -281,3 +281,48 @@ def test_adm_candidates_in_eval_and_generate(tiny_runs):
             jaxmotion.generate(scene, "sit down", adm_candidates=bad, **fast)
     with pytest.raises(GenerateError, match="adm_steps must be"):
         jaxmotion.generate(scene, "sit down", **{**fast, "adm_steps": 0})
+
+
+def test_motion_candidates_in_eval_and_generate(tiny_runs):
+    import jaxmotion
+    from jaxmotion.eval.runner import parse_model
+    from jaxmotion.generation import GenerateError
+
+    root, out = tiny_runs
+    m = parse_model("c=x,y,ddim4,adm_candidates=3,motion_candidates=2")
+    assert m.motion_candidates == 2
+    assert m.sampler_label == "DDIM-4 (best of 3 ADM maps, best of 2 motions)"
+    assert parse_model("c=x,y").motion_candidates == 1
+    for bad in ("c=x,y,motion_candidates=0", "c=x,y,motion_candidates=two"):
+        with pytest.raises(ValueError, match="motion_candidates must be"):
+            parse_model(bad)
+    spec = [ModelSpec("c", str(root / "adm"), str(root / "amdm"), "ddim", 2,
+                      motion_candidates=2)]
+    kw = dict(num_cases=2, samples=1, replications=1, body=False, batch_size=4, progress=False)
+    with pytest.raises(ValueError, match="needs --protocol generate"):
+        evaluate(out["data"], spec, **kw)
+    rep = evaluate(out["data"], spec, protocol="generate", **kw)
+    assert np.isfinite(rep["models"]["c"]["summary"]["goal_distance"]["mean"])
+    ckpt = (str(root / "adm"), str(root / "amdm"))
+    scene = jaxmotion.generation.demo_scene()
+    chair = next(o for o in scene.objects if o["category"] == "chair")
+    fast = dict(checkpoints=ckpt, fit=False, steps=2, adm_steps=2, adm_candidates=1, seed=1)
+    one = jaxmotion.generate(scene, "sit down", object_id=chair["id"], motion_candidates=1,
+                             **fast)
+    a = jaxmotion.generate(scene, "sit down", object_id=chair["id"], motion_candidates=3,
+                           **fast)
+    b = jaxmotion.generate(scene, "sit down", object_id=chair["id"], motion_candidates=3,
+                           **fast)
+    np.testing.assert_array_equal(a.joints, b.joints)  # same seed, same pick
+    assert a.motion_candidates == 3 and one.motion_candidates == 1
+
+    def reach(res):  # the last frame's closest joint to the chair's points in the crop
+        chair_pts = {tuple(p) for p in scene.xyz[scene.instance == chair["id"]].astype(np.float32)}
+        pts = np.array([p for p in res.crop_xyz if tuple(p) in chair_pts])
+        assert len(pts) > 0
+        return np.linalg.norm(pts[:, None] - res.joints[0, -1][None], axis=-1).min()
+
+    assert reach(a) <= reach(one) + 1e-6  # the first candidate is the one-motion result
+    for bad in (0, 17, 1.5):
+        with pytest.raises(GenerateError, match="motion_candidates must be"):
+            jaxmotion.generate(scene, "sit down", motion_candidates=bad, **fast)

@@ -71,6 +71,7 @@ class ModelSpec:
     consistency: float = 0.0  # affordance-consistency guidance strength of the AMDM (0 = off)
     adm_candidates: int = 1  # ADM maps per sample; the one lighting the known target is kept
     adm_steps: int | None = None  # DDIM steps of the ADM stage (None: ``steps``)
+    motion_candidates: int = 1  # motions per map; the one reaching the known target is kept
 
     @property
     def sampler_label(self) -> str:
@@ -85,16 +86,22 @@ class ModelSpec:
             guided.append(f"ADM DDIM-{self.adm_steps}")
         if self.adm_candidates > 1:
             guided.append(f"best of {self.adm_candidates} ADM maps")
+        if self.motion_candidates > 1:
+            guided.append(f"best of {self.motion_candidates} motions")
         return label + (f" ({', '.join(guided)})" if guided else "")
 
 
 def parse_model(text: str) -> ModelSpec:
     """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,consistency=S]
-    [,affordance=adm|gt][,adm_candidates=C][,adm_steps=N]`` → :class:`ModelSpec` (the
+    [,affordance=adm|gt][,adm_candidates=C][,adm_steps=N][,motion_candidates=M]`` →
+    :class:`ModelSpec` (the
     ``--model`` syntax). ``adm_steps``: DDIM steps of the ADM stage when they differ from the
     sampler's (as ``jaxmotion generate --adm-steps``).
     ``adm_candidates`` (generate protocol only): C ADM maps per sample, the one lighting the
-    region's object most is kept, as ``jaxmotion generate --adm-candidates``. ``consistency``: the
+    region's object most is kept, as ``jaxmotion generate --adm-candidates``;
+    ``motion_candidates`` (generate protocol only): M motions per map, the one that comes closest
+    to the region's object at the anchor frame is kept, as ``jaxmotion generate
+    --motion-candidates``. ``consistency``: the
     strength in [0, 1] of affordance-consistency guidance on the AMDM (0, the default, = off).
     ``affordance=gt`` feeds the AMDM the ground-truth affordance maps instead of the ADM's: the
     row then measures the AMDM alone."""
@@ -119,15 +126,17 @@ def parse_model(text: str) -> ModelSpec:
             raise ValueError(f"--model {text!r}: sampler {positional[2]!r} is not ddimN (N > 0) "
                              "or ddpm")
     guidance = {"adm_guidance": 1.0, "amdm_guidance": 1.0}
-    affordance, consistency, candidates, adm_steps = "adm", 0.0, 1, None
+    affordance, consistency, candidates, adm_steps, motions = "adm", 0.0, 1, None, 1
     for opt in options:
         key, _, value = opt.partition("=")
-        if key in ("adm_candidates", "adm_steps"):
+        if key in ("adm_candidates", "adm_steps", "motion_candidates"):
             if not value.isdigit() or int(value) < 1:
                 raise ValueError(f"--model {text!r}: {key} must be an integer ≥ 1, "
                                  f"got {value!r}")
             if key == "adm_candidates":
                 candidates = int(value)
+            elif key == "motion_candidates":
+                motions = int(value)
             elif method != "ddim":
                 raise ValueError(f"--model {text!r}: adm_steps needs a DDIM sampler (ddimN)")
             else:
@@ -151,7 +160,8 @@ def parse_model(text: str) -> ModelSpec:
         if key not in guidance:
             raise ValueError(f"--model {text!r}: unknown option {key!r}; valid: "
                              + ", ".join([*guidance, "consistency", "affordance",
-                                          "adm_candidates", "adm_steps"]))
+                                          "adm_candidates", "adm_steps",
+                                          "motion_candidates"]))
         try:
             guidance[key] = float(value)
         except ValueError:
@@ -160,7 +170,7 @@ def parse_model(text: str) -> ModelSpec:
             raise ValueError(f"--model {text!r}: {key} must be > 0 (1 = no guidance)")
     return ModelSpec(name, positional[0], positional[1], method, steps, **guidance,
                      affordance=affordance, consistency=consistency, adm_candidates=candidates,
-                     adm_steps=adm_steps)
+                     adm_steps=adm_steps, motion_candidates=motions)
 
 
 # --------------------------------------------------------------------------- per case
@@ -289,6 +299,7 @@ def evaluate(
     from tqdm.auto import tqdm
 
     from jaxmotion.sample import AffordancePipeline, SamplerSpec, case_inputs, load_cases, take_text
+    from jaxmotion.scene.instructions import anchor_is_first
     from jaxmotion.text import load_text_encoder
 
     if samples < 1 or replications < 1 or num_cases < 1:
@@ -341,6 +352,10 @@ def evaluate(
             raise ValueError(f"--model {spec.name!r}: adm_candidates picks the ADM map that "
                              "lights the object generate's region was centred on; it needs "
                              "--protocol generate and a crop-view ADM (not affordance=gt)")
+        if spec.motion_candidates > 1 and protocol != "generate":
+            raise ValueError(f"--model {spec.name!r}: motion_candidates keeps the motion that "
+                             "comes closest to the object generate's region was centred on; it "
+                             "needs --protocol generate")
         if oracle:
             if not two_stage:
                 raise ValueError(f"--model {spec.name!r}: affordance=gt needs an AMDM that reads "
@@ -366,7 +381,9 @@ def evaluate(
                     affordance=gt_maps[idx] if oracle else None, view=x["view"],
                     exclude=x["exclude"], candidates=spec.adm_candidates,
                     target=None if regions is None else np.stack(
-                        [cases[i]["chosen_mask"] for i in idx])))
+                        [cases[i]["chosen_mask"] for i in idx]),
+                    motion_candidates=spec.motion_candidates,
+                    anchor_first=np.array([anchor_is_first(cases[i]["text"]) for i in idx])))
                 for j, (ci, k) in enumerate(chunk):
                     joints[ci, k] = res["joints"][j]
                     if two_stage:

@@ -10,7 +10,7 @@ Prints wall-clock seconds of the whole process (import, load, sampling, body fit
 every output) and the per-stage split reported by the command itself.
 
     python benchmarks/generate.py [--runs 3] [--steps 20] [--video gif|mp4|none] [--consistency S]
-        [--adm-candidates C] [--adm-steps N]
+        [--adm-candidates C] [--adm-steps N] [--motion-candidates M]
 """
 
 from __future__ import annotations
@@ -36,6 +36,8 @@ def run_once(cache: str, out: str, args) -> tuple[float, dict]:
         cmd += ["--consistency", str(args.consistency)]
     if args.adm_candidates is not None:
         cmd += ["--adm-candidates", str(args.adm_candidates)]
+    if args.motion_candidates is not None:
+        cmd += ["--motion-candidates", str(args.motion_candidates)]
     if args.adm_steps is not None:
         cmd += ["--adm-steps", str(args.adm_steps)]
     t0 = time.perf_counter()
@@ -60,13 +62,17 @@ def main():
                     help="ADM maps per sample for a known target (default: the command's)")
     ap.add_argument("--adm-steps", type=int, default=None,
                     help="DDIM steps of the ADM stage (default: the command's)")
+    ap.add_argument("--motion-candidates", type=int, default=None,
+                    help="motions per map for a known target (default: the command's)")
     args = ap.parse_args()
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}")
     print(f"jaxmotion generate --scene demo --steps {args.steps} --samples {args.samples} "
           f"--video {args.video}"
           + ("" if args.consistency is None else f" --consistency {args.consistency:g}")
           + ("" if args.adm_candidates is None else f" --adm-candidates {args.adm_candidates}")
-          + ("" if args.adm_steps is None else f" --adm-steps {args.adm_steps}"))
+          + ("" if args.adm_steps is None else f" --adm-steps {args.adm_steps}")
+          + ("" if args.motion_candidates is None
+             else f" --motion-candidates {args.motion_candidates}"))
     with tempfile.TemporaryDirectory() as tmp:
         cache, out = os.path.join(tmp, "cache"), os.path.join(tmp, "out")
         cold, cold_st = run_once(cache, out, args)

@@ -81,6 +81,18 @@ def adm_map_one(net, schedule, stats, key, points, colors, text, spec: SamplerSp
     text condition (unbatched): ``net`` is the frozen backbone + ADM (:func:`load_adm`'s, or
     the training model), ``stats`` the affordance ``(mean, std)``; ``exclude`` ``[N]`` as in
     :meth:`AffordancePipeline.sample_affordance`. Written for one example: ``jax.vmap`` it."""
+    return _adm_draw(net, schedule, stats, points, colors, text, spec, exclude)(key)
+
+
+def adm_maps_one(net, schedule, stats, keys, points, colors, text, spec: SamplerSpec,
+                 exclude=None):
+    """As :func:`adm_map_one`, one map per key of ``keys`` ``[C]``: ``[C, N, 6]``. The crop's
+    backbone features are computed once and shared by the C draws."""
+    return jax.vmap(_adm_draw(net, schedule, stats, points, colors, text, spec, exclude))(keys)
+
+
+def _adm_draw(net, schedule, stats, points, colors, text, spec: SamplerSpec, exclude=None):
+    """``key -> map [N, 6]`` for one crop and text, with the backbone run once here."""
     from jaxmotion.models import adm_text_cond
 
     mean, std = stats
@@ -96,9 +108,14 @@ def adm_map_one(net, schedule, stats, key, points, colors, text, spec: SamplerSp
     if exclude is not None:  # no affordance there (0, normalised) in every clean estimate
         far = -mean / std
         refine = lambda x0, t: jnp.where(exclude[None, :, None], far, x0)  # noqa: E731
-    x0 = spec.run(key, denoise, schedule, shape, adm_text_cond(text),
-                  lambda c: jax.tree.map(jnp.zeros_like, c), refine)
-    return jnp.clip(x0[0] * std + mean, 0.0, 1.0)
+    cond = adm_text_cond(text)
+
+    def draw(key):
+        x0 = spec.run(key, denoise, schedule, shape, cond,
+                      lambda c: jax.tree.map(jnp.zeros_like, c), refine)
+        return jnp.clip(x0[0] * std + mean, 0.0, 1.0)
+
+    return draw
 
 
 def _tensor(tensors, name, source):
@@ -190,15 +207,27 @@ class AffordancePipeline:
         return {"pooled": pooled, "tokens": tokens, "mask": mask}
 
     # -- one example (vmapped below) ---------------------------------------------------------
-    def _affordance_one(self, key, points, colors, text, spec: SamplerSpec, exclude=None):
+    def _check_text(self, text):
         if self.text_tokens and not isinstance(text, dict):
             raise ValueError(f"this ADM reads word-level text ({self.text_tokens} tokens): pass "
                              "the text condition of AffordancePipeline.embed_text, not a pooled "
                              "embedding array")
+        return text
+
+    def _affordance_one(self, key, points, colors, text, spec: SamplerSpec, exclude=None):
         return adm_map_one(self.adm_net, self.adm_schedule, (self.a_mean, self.a_std), key,
-                           points, colors, text, spec, exclude)
+                           points, colors, self._check_text(text), spec, exclude)
 
     def _motion_one(self, key, points, scene_feat, text, mask, spec: SamplerSpec):
+        return self._motion_draw(points, scene_feat, text, mask, spec)(key)
+
+    def _motions_one(self, keys, points, scene_feat, text, mask, spec: SamplerSpec):
+        """One motion per key of ``keys`` ``[M]``: ``[M, T, 22, 3]``; the scene and text are
+        encoded once and shared by the M draws."""
+        return jax.vmap(self._motion_draw(points, scene_feat, text, mask, spec))(keys)
+
+    def _motion_draw(self, points, scene_feat, text, mask, spec: SamplerSpec):
+        """``key -> joints [T, 22, 3]`` for one example, with its condition encoded here."""
         from jaxmotion.models import pooled_text
 
         text_emb = pooled_text(text)
@@ -231,9 +260,13 @@ class AffordancePipeline:
             refine = make_x0_refiner(points, scene_feat, mask, self.m_mean, self.m_std,
                                      ConsistencyGuidance(strength=float(spec.consistency)),
                                      self.sigma)
-        x0 = spec.run(key, denoise, self.amdm_schedule, shape, {**base, **flags}, null, refine)
-        motion = x0[0] * self.m_std + self.m_mean
-        return motion.reshape(mask.shape[0], 22, 3)
+        def draw(key):
+            x0 = spec.run(key, denoise, self.amdm_schedule, shape, {**base, **flags}, null,
+                          refine)
+            motion = x0[0] * self.m_std + self.m_mean
+            return motion.reshape(mask.shape[0], 22, 3)
+
+        return draw
 
     # -- batched, jitted entry points --------------------------------------------------------
     @functools.cached_property
@@ -246,7 +279,41 @@ class AffordancePipeline:
             return jax.vmap(lambda k, p, f, e, m: self._motion_one(k, p, f, e, m, spec))(
                 keys, points, feats, text, mask)
 
-        return jax.jit(aff, static_argnums=0), jax.jit(mot, static_argnums=0)
+        def affs(spec, keys, points, colors, text, exclude):  # keys [B, C]
+            return jax.vmap(lambda k, p, c, e, x: adm_maps_one(
+                self.adm_net, self.adm_schedule, (self.a_mean, self.a_std), k, p, c,
+                self._check_text(e), spec, x))(keys, points, colors, text, exclude)
+
+        def mots(spec, keys, points, feats, text, mask):  # keys [B, M]
+            return jax.vmap(lambda k, p, f, e, m: self._motions_one(k, p, f, e, m, spec))(
+                keys, points, feats, text, mask)
+
+        return tuple(jax.jit(f, static_argnums=0) for f in (aff, mot, affs, mots))
+
+    @staticmethod
+    def _candidate_keys(key, batch: int, candidates: int):
+        """``[B, C]`` keys: example b's first is ``split(key, B)[b]`` (the key of a single
+        draw, so candidate 0 is the draw without candidates), then ``fold_in`` of it by 1 ..
+        C − 1."""
+        first = jax.random.split(key, batch)
+        more = jax.vmap(lambda k: jax.vmap(lambda j: jax.random.fold_in(k, j))(
+            jnp.arange(1, candidates)))(first)
+        return jnp.concatenate([first[:, None], more], axis=1)
+
+    def sample_affordances(self, key, points, colors, text_emb, spec, exclude=None,
+                           candidates: int = 1):
+        """``candidates`` maps per example, ``[B, C, N, 6]`` (see :meth:`sample_affordance`;
+        candidate 0 is its map). The backbone runs once per crop."""
+        keys = self._candidate_keys(key, points.shape[0], int(candidates))
+        return self._jitted[2](spec, keys, points, colors, text_emb, self._exclude(exclude,
+                                                                                 points))
+
+    def sample_motions(self, key, points, scene_feat, text_emb, mask, spec,
+                       candidates: int = 1):
+        """``candidates`` motions per example, ``[B, M, T, 22, 3]`` (see :meth:`sample_motion`;
+        candidate 0 is its motion). The condition is encoded once per example."""
+        keys = self._candidate_keys(key, points.shape[0], int(candidates))
+        return self._jitted[3](spec, keys, points, scene_feat, text_emb, mask)
 
     def sample_affordance(self, key, points, colors, text_emb, spec=SamplerSpec(steps=50),
                           exclude=None):
@@ -258,12 +325,18 @@ class AffordancePipeline:
         estimate is set to 0 (no affordance) on them, as in inpainting, so the sampler puts the
         map elsewhere; all False gives the same maps as None."""
         keys = jax.random.split(key, points.shape[0])
-        if exclude is not None:
-            exclude = jnp.asarray(exclude, bool)
-            if exclude.shape != points.shape[:2]:
-                raise ValueError(f"exclude must be [B, N] = {tuple(points.shape[:2])}, got "
-                                 f"{tuple(exclude.shape)}")
-        return self._jitted[0](spec, keys, points, colors, text_emb, exclude)
+        return self._jitted[0](spec, keys, points, colors, text_emb,
+                               self._exclude(exclude, points))
+
+    @staticmethod
+    def _exclude(exclude, points):
+        if exclude is None:
+            return None
+        exclude = jnp.asarray(exclude, bool)
+        if exclude.shape != points.shape[:2]:
+            raise ValueError(f"exclude must be [B, N] = {tuple(points.shape[:2])}, got "
+                             f"{tuple(exclude.shape)}")
+        return exclude
 
     def sample_motion(self, key, points, scene_feat, text_emb, mask, spec=SamplerSpec(steps=50)):
         """``scene_feat``: the affordance map [B,N,6] (or rgb for the one-stage model);
@@ -302,13 +375,12 @@ class AffordancePipeline:
             raise ValueError("exclude applies to an ADM on the crop; a room-view ADM's map is "
                              "carried from its view: leave exclude out")
         def motion(feats):  # [B,N,C] scene features the AMDM reads
-            joints = self.sample_motion(km, points, feats, text_emb, mask, amdm)
             if motion_candidates > 1:
                 first = (jnp.zeros(points.shape[0], bool) if anchor_first is None
                          else anchor_first)
-                joints = self.best_motion(km, joints, points, feats, text_emb, mask, amdm,
-                                          target, first, motion_candidates)
-            return joints
+                return self.best_motion(km, points, feats, text_emb, mask, amdm, target, first,
+                                        motion_candidates)
+            return self.sample_motion(km, points, feats, text_emb, mask, amdm)
 
         if self.amdm.cfg.scene_input == "rgb":
             return {"joints": motion(colors)}
@@ -324,46 +396,35 @@ class AffordancePipeline:
                 raise ValueError("this ADM was trained on the room view (crop.centre=room): pass "
                                  "view={'points', 'colors', 'in_crop'} (load_cases and "
                                  "case_inputs build it), or maps as affordance=")
-            aff = self.sample_affordance(ka, points, colors, text_emb, adm, exclude)
             if candidates > 1:
-                aff = self.best_of(ka, aff, points, colors, text_emb, adm, exclude, target,
+                aff = self.best_of(ka, points, colors, text_emb, adm, exclude, target,
                                    candidates)
+            else:
+                aff = self.sample_affordance(ka, points, colors, text_emb, adm, exclude)
         return {**out, "affordance": aff, "joints": motion(aff)}
 
-    def best_of(self, key, first, points, colors, text_emb, spec, exclude, target,
-                candidates: int):
-        """Of ``candidates`` ADM maps per example (``first`` ``[B,N,6]``, drawn with ``key``,
-        and ``candidates − 1`` more drawn with ``fold_in(key, 1)``), the one that lights
-        ``target`` ``[B,N]`` most: the largest mean over its points of the strongest channel
-        (the score generate's region choice uses). An example with no target point keeps
-        ``first``."""
-        b, m = points.shape[0], int(candidates) - 1
-        rep = functools.partial(_repeat, m=m)
-        more = self.sample_affordance(jax.random.fold_in(key, 1), rep(points), rep(colors),
-                                      rep(text_emb), spec,
-                                      None if exclude is None else rep(exclude))
-        maps = jnp.concatenate([first[:, None], more.reshape(b, m, *first.shape[1:])], axis=1)
+    def best_of(self, key, points, colors, text_emb, spec, exclude, target, candidates: int):
+        """Of ``candidates`` ADM maps per example (:meth:`sample_affordances`; the first is
+        :meth:`sample_affordance`'s), the one that lights ``target`` ``[B,N]`` most: the
+        largest mean over its points of the strongest channel (the score generate's region
+        choice uses). An example with no target point keeps the first."""
+        maps = self.sample_affordances(key, points, colors, text_emb, spec, exclude, candidates)
         t = jnp.asarray(target, jnp.float32)[:, None]  # [B,1,N]
         score = (maps.max(-1) * t).sum(-1) / jnp.maximum(t.sum(-1), 1.0)  # [B,C]
         best = jnp.argmax(score, axis=1)  # ties (no target): the first
         return jnp.take_along_axis(maps, best[:, None, None, None], axis=1)[:, 0]
 
-    def best_motion(self, key, first, points, feats, text_emb, mask, spec, target, anchor_first,
+    def best_motion(self, key, points, feats, text_emb, mask, spec, target, anchor_first,
                     candidates: int):
         """Of ``candidates`` motions per example drawn from the same scene features ``feats``
-        (the affordance maps, or the colours of a one-stage AMDM) (``first``
-        ``[B,T,22,3]``, drawn with ``key``, and ``candidates − 1`` more drawn with
-        ``fold_in(key, 1)``), the one whose body comes closest to ``target`` ``[B,N]`` (the
-        points of a known target object) at the anchor frame: the first valid frame where
-        ``anchor_first [B]`` (getting up from the object,
+        (the affordance maps, or the colours of a one-stage AMDM; :meth:`sample_motions`, the
+        first is :meth:`sample_motion`'s), the one whose body comes closest to ``target``
+        ``[B,N]`` (the points of a known target object) at the anchor frame: the first valid
+        frame where ``anchor_first [B]`` (getting up from the object,
         :func:`jaxmotion.scene.instructions.anchor_is_first`), else the last. Closeness is
         the smallest distance between a joint and a target point. An example with no target
-        point keeps ``first``."""
-        b, m = points.shape[0], int(candidates) - 1
-        rep = functools.partial(_repeat, m=m)
-        more = self.sample_motion(jax.random.fold_in(key, 1), rep(points), rep(feats),
-                                  rep(text_emb), rep(mask), spec)
-        motions = jnp.concatenate([first[:, None], more.reshape(b, m, *first.shape[1:])], axis=1)
+        point keeps the first."""
+        motions = self.sample_motions(key, points, feats, text_emb, mask, spec, candidates)
         mask = jnp.asarray(mask, bool)
         t_last = mask.shape[1] - 1 - jnp.argmax(mask[:, ::-1], axis=1)
         anchor = jnp.where(jnp.asarray(anchor_first, bool), jnp.argmax(mask, axis=1), t_last)
@@ -382,12 +443,6 @@ class AffordancePipeline:
         from jaxmotion.geometry import carry_field
 
         return jax.vmap(carry_field)(points, view_points, view_maps)
-
-
-def _repeat(tree, m: int):
-    """Each example of a batch (a pytree of ``[B, ...]`` arrays) ``m`` times in a row:
-    ``[B*m, ...]``, the layout of :meth:`AffordancePipeline.best_of`'s extra draws."""
-    return jax.tree.map(lambda a: jnp.repeat(jnp.asarray(a), m, axis=0), tree)
 
 
 def _tile(tree, b):

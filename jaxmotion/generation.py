@@ -640,16 +640,12 @@ def generate(
     if samples > 256:
         raise GenerateError(f"samples={samples} is more than 256; generate in several calls")
     adm_candidates = DEFAULT_ADM_CANDIDATES if adm_candidates is None else adm_candidates
-    if not isinstance(adm_candidates, (int, np.integer)) or isinstance(adm_candidates, bool) \
-            or not 1 <= adm_candidates <= 32:
-        raise GenerateError(f"adm_candidates must be an integer in [1, 32], got "
-                            f"{adm_candidates!r}")
     motion_candidates = (DEFAULT_MOTION_CANDIDATES if motion_candidates is None
                          else motion_candidates)
-    if not isinstance(motion_candidates, (int, np.integer)) \
-            or isinstance(motion_candidates, bool) or not 1 <= motion_candidates <= 16:
-        raise GenerateError(f"motion_candidates must be an integer in [1, 16], got "
-                            f"{motion_candidates!r}")
+    for name, v, hi in (("adm_candidates", adm_candidates, 32),
+                        ("motion_candidates", motion_candidates, 16)):
+        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or not 1 <= v <= hi:
+            raise GenerateError(f"{name} must be an integer in [1, {hi}], got {v!r}")
     if grounding not in ("auto", "adm"):
         raise GenerateError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
     adm_file, amdm_file = _resolve_checkpoints(checkpoints)

@@ -376,10 +376,8 @@ class AffordancePipeline:
                              "carried from its view: leave exclude out")
         def motion(feats):  # [B,N,C] scene features the AMDM reads
             if motion_candidates > 1:
-                first = (jnp.zeros(points.shape[0], bool) if anchor_first is None
-                         else anchor_first)
-                return self.best_motion(km, points, feats, text_emb, mask, amdm, target, first,
-                                        motion_candidates)
+                return self.best_motion(km, points, feats, text_emb, mask, amdm, target,
+                                        anchor_first, motion_candidates)
             return self.sample_motion(km, points, feats, text_emb, mask, amdm)
 
         if self.amdm.cfg.scene_input == "rgb":
@@ -421,13 +419,15 @@ class AffordancePipeline:
         first is :meth:`sample_motion`'s), the one whose body comes closest to ``target``
         ``[B,N]`` (the points of a known target object) at the anchor frame: the first valid
         frame where ``anchor_first [B]`` (getting up from the object,
-        :func:`jaxmotion.scene.instructions.anchor_is_first`), else the last. Closeness is
-        the smallest distance between a joint and a target point. An example with no target
-        point keeps the first."""
+        :func:`jaxmotion.scene.instructions.anchor_is_first`; None: all False), else the
+        last. Closeness is the smallest distance between a joint and a target point. An
+        example with no target point keeps the first."""
         motions = self.sample_motions(key, points, feats, text_emb, mask, spec, candidates)
         mask = jnp.asarray(mask, bool)
         t_last = mask.shape[1] - 1 - jnp.argmax(mask[:, ::-1], axis=1)
-        anchor = jnp.where(jnp.asarray(anchor_first, bool), jnp.argmax(mask, axis=1), t_last)
+        first = (jnp.zeros(mask.shape[0], bool) if anchor_first is None
+                 else jnp.asarray(anchor_first, bool))
+        anchor = jnp.where(first, jnp.argmax(mask, axis=1), t_last)
         pose = jnp.take_along_axis(motions, anchor[:, None, None, None, None], axis=2)[:, :, 0]
         d = jnp.linalg.norm(jnp.asarray(points)[:, None, :, None] - pose[:, :, None], axis=-1)
         t = jnp.asarray(target, bool)[:, None, :, None]  # [B,1,N,1]

@@ -251,12 +251,35 @@ def test_best_motion_keeps_the_motion_that_reaches_the_target(tiny_runs):
     assert not anchor_is_first("walk up to the stool")
 
 
+def _generate_protocol_only(tiny_runs, **option):
+    """A candidates option of `jaxmotion eval` is refused under the paper protocol and runs
+    under the generate protocol."""
+    root, out = tiny_runs
+    spec = [ModelSpec("c", str(root / "adm"), str(root / "amdm"), "ddim", 2, **option)]
+    kw = dict(num_cases=2, samples=1, replications=1, body=False, batch_size=4, progress=False)
+    with pytest.raises(ValueError, match="needs --protocol generate"):
+        evaluate(out["data"], spec, **kw)
+    rep = evaluate(out["data"], spec, protocol="generate", **kw)
+    assert np.isfinite(rep["models"]["c"]["summary"]["goal_distance"]["mean"])
+
+
+def _demo_chair(root):
+    """The demo room, its chair and fast `generate` settings with the tiny checkpoints."""
+    import jaxmotion
+
+    scene = jaxmotion.generation.demo_scene()
+    chair = next(o for o in scene.objects if o["category"] == "chair")
+    fast = dict(checkpoints=(str(root / "adm"), str(root / "amdm")), fit=False, steps=2,
+                adm_steps=2, seed=1)
+    return scene, chair, fast
+
+
 def test_adm_candidates_in_eval_and_generate(tiny_runs):
     import jaxmotion
     from jaxmotion.eval.runner import parse_model
     from jaxmotion.generation import GenerateError
 
-    root, out = tiny_runs
+    root, _ = tiny_runs
     m = parse_model("c=x,y,ddim4,adm_candidates=3")
     assert m.adm_candidates == 3 and m.sampler_label == "DDIM-4 (best of 3 ADM maps)"
     m = parse_model("c=x,y,ddim4,adm_candidates=3,adm_steps=2")
@@ -268,17 +291,8 @@ def test_adm_candidates_in_eval_and_generate(tiny_runs):
                      ("c=x,y,ddpm,adm_steps=5", "needs a DDIM sampler")):
         with pytest.raises(ValueError, match=msg):
             parse_model(bad)
-    spec = [ModelSpec("c", str(root / "adm"), str(root / "amdm"), "ddim", 2, adm_candidates=2,
-                      adm_steps=1)]
-    kw = dict(num_cases=2, samples=1, replications=1, body=False, batch_size=4, progress=False)
-    with pytest.raises(ValueError, match="needs --protocol generate"):
-        evaluate(out["data"], spec, **kw)
-    rep = evaluate(out["data"], spec, protocol="generate", **kw)
-    assert np.isfinite(rep["models"]["c"]["summary"]["goal_distance"]["mean"])
-    ckpt = (str(root / "adm"), str(root / "amdm"))
-    scene = jaxmotion.generation.demo_scene()
-    chair = next(o for o in scene.objects if o["category"] == "chair")
-    fast = dict(checkpoints=ckpt, fit=False, steps=2, adm_steps=2, seed=1)
+    _generate_protocol_only(tiny_runs, adm_candidates=2, adm_steps=1)
+    scene, chair, fast = _demo_chair(root)
     a = jaxmotion.generate(scene, "sit down", object_id=chair["id"], adm_candidates=3, **fast)
     b = jaxmotion.generate(scene, "sit down", object_id=chair["id"], adm_candidates=3, **fast)
     np.testing.assert_array_equal(a.joints, b.joints)
@@ -295,7 +309,7 @@ def test_motion_candidates_in_eval_and_generate(tiny_runs):
     from jaxmotion.eval.runner import parse_model
     from jaxmotion.generation import GenerateError
 
-    root, out = tiny_runs
+    root, _ = tiny_runs
     m = parse_model("c=x,y,ddim4,adm_candidates=3,motion_candidates=2")
     assert m.motion_candidates == 2
     assert m.sampler_label == "DDIM-4 (best of 3 ADM maps, best of 2 motions)"
@@ -303,17 +317,9 @@ def test_motion_candidates_in_eval_and_generate(tiny_runs):
     for bad in ("c=x,y,motion_candidates=0", "c=x,y,motion_candidates=two"):
         with pytest.raises(ValueError, match="motion_candidates must be"):
             parse_model(bad)
-    spec = [ModelSpec("c", str(root / "adm"), str(root / "amdm"), "ddim", 2,
-                      motion_candidates=2)]
-    kw = dict(num_cases=2, samples=1, replications=1, body=False, batch_size=4, progress=False)
-    with pytest.raises(ValueError, match="needs --protocol generate"):
-        evaluate(out["data"], spec, **kw)
-    rep = evaluate(out["data"], spec, protocol="generate", **kw)
-    assert np.isfinite(rep["models"]["c"]["summary"]["goal_distance"]["mean"])
-    ckpt = (str(root / "adm"), str(root / "amdm"))
-    scene = jaxmotion.generation.demo_scene()
-    chair = next(o for o in scene.objects if o["category"] == "chair")
-    fast = dict(checkpoints=ckpt, fit=False, steps=2, adm_steps=2, adm_candidates=1, seed=1)
+    _generate_protocol_only(tiny_runs, motion_candidates=2)
+    scene, chair, fast = _demo_chair(root)
+    fast["adm_candidates"] = 1
     one = jaxmotion.generate(scene, "sit down", object_id=chair["id"], motion_candidates=1,
                              **fast)
     a = jaxmotion.generate(scene, "sit down", object_id=chair["id"], motion_candidates=3,

@@ -17,6 +17,14 @@ the desk" is in view; the pipeline carries its map to the AMDM's crop by nearest
 ``init_from=DIR`` starts the ADM from another ADM run's weights (workdir or ``.safetensors``;
 same model config) instead of random ones, e.g. to fine-tune a crop-view ADM to the room view.
 
+Known target (``model.target_input=true``): the ADM also reads a 0/1 mask of the target
+object's points, so once the target is known (``jaxmotion generate`` finds it with the scene
+graph, or takes ``--object``) the map is drawn for that object, not for whatever the sentence
+vector suggests. The mask is zeroed with probability ``target_drop`` per example in training,
+so the same weights draw maps from the text alone when no target is known (the paper
+protocol, rooms without an object table). ``init_from`` may name an ADM without the target
+input: its weights are kept and the new input starts at zero, i.e. from that ADM exactly.
+
 Selection by grounding (``grounding_every=N``): every N steps the EMA weights draw maps
 (DDIM, ``grounding_steps``, guidance ``grounding_guidance``) on the first ``grounding_cases``
 val crops (the paper protocol's crops), and the run logs how often a map reaches the target
@@ -45,6 +53,7 @@ class ADMTrainConfig(TrainConfig):
     grounding_cases: int = 128
     grounding_steps: int = 10
     grounding_guidance: float = 5.0
+    target_drop: float = 0.5
     steps: int = 6000
     batch_size: int = 16
     model: ADMConfig = dataclasses.field(default_factory=ADMConfig)
@@ -59,6 +68,8 @@ class ADMTrainConfig(TrainConfig):
                 "grounding_every must be >= 0 (0: off), grounding_cases and grounding_steps >= 1 "
                 f"and grounding_guidance > 0; got {self.grounding_every}, {self.grounding_cases}, "
                 f"{self.grounding_steps}, {self.grounding_guidance}")
+        if not 0.0 <= self.target_drop <= 1.0:
+            raise ValueError(f"target_drop must be in [0, 1], got {self.target_drop}")
 
 
 PRESETS: dict[str, dict[str, Any]] = {

@@ -76,28 +76,38 @@ class SamplerSpec:
 
 
 def adm_map_one(net, schedule, stats, key, points, colors, text, spec: SamplerSpec,
-                exclude=None):
+                exclude=None, target=None):
     """One ADM map ``[N, 6]`` in [0, 1] for one crop (``points``, ``colors`` ``[N, 3]``) and one
     text condition (unbatched): ``net`` is the frozen backbone + ADM (:func:`load_adm`'s, or
     the training model), ``stats`` the affordance ``(mean, std)``; ``exclude`` ``[N]`` as in
-    :meth:`AffordancePipeline.sample_affordance`. Written for one example: ``jax.vmap`` it."""
-    return _adm_draw(net, schedule, stats, points, colors, text, spec, exclude)(key)
+    :meth:`AffordancePipeline.sample_affordance`; ``target`` ``[N]``, a known target object's
+    points, for an ADM with the target input (None: no target known). Written for one
+    example: ``jax.vmap`` it."""
+    return _adm_draw(net, schedule, stats, points, colors, text, spec, exclude, target)(key)
 
 
 def adm_maps_one(net, schedule, stats, keys, points, colors, text, spec: SamplerSpec,
-                 exclude=None):
+                 exclude=None, target=None):
     """As :func:`adm_map_one`, one map per key of ``keys`` ``[C]``: ``[C, N, 6]``. The crop's
     backbone features are computed once and shared by the C draws."""
-    return jax.vmap(_adm_draw(net, schedule, stats, points, colors, text, spec, exclude))(keys)
+    return jax.vmap(_adm_draw(net, schedule, stats, points, colors, text, spec, exclude,
+                              target))(keys)
 
 
-def _adm_draw(net, schedule, stats, points, colors, text, spec: SamplerSpec, exclude=None):
+def _adm_draw(net, schedule, stats, points, colors, text, spec: SamplerSpec, exclude=None,
+              target=None):
     """``key -> map [N, 6]`` for one crop and text, with the backbone run once here."""
     from jaxmotion.models import adm_text_cond
 
     mean, std = stats
     feats = net.features(points[None], colors[None])
     fixed = {"features": feats, "xyz": points[None]}
+    if net.adm.cfg.target_input:  # the target is not guided: it stays in both halves
+        known = jnp.zeros(points.shape[0]) if target is None else jnp.asarray(target)
+        fixed["target"] = known.astype(jnp.float32)[None]
+    elif target is not None:
+        raise ValueError("this ADM has no target input (model.target_input=false): leave "
+                         "target out, or use an ADM trained with model.target_input=true")
 
     def denoise(x, t, cond):  # x may be the doubled batch of guidance
         return net.adm(x, t, {**cond, **_tile(fixed, x.shape[0])}, deterministic=True)
@@ -214,9 +224,10 @@ class AffordancePipeline:
                              "embedding array")
         return text
 
-    def _affordance_one(self, key, points, colors, text, spec: SamplerSpec, exclude=None):
+    def _affordance_one(self, key, points, colors, text, spec: SamplerSpec, exclude=None,
+                        target=None):
         return adm_map_one(self.adm_net, self.adm_schedule, (self.a_mean, self.a_std), key,
-                           points, colors, self._check_text(text), spec, exclude)
+                           points, colors, self._check_text(text), spec, exclude, target)
 
     def _motion_one(self, key, points, scene_feat, text, mask, spec: SamplerSpec):
         return self._motion_draw(points, scene_feat, text, mask, spec)(key)
@@ -271,18 +282,19 @@ class AffordancePipeline:
     # -- batched, jitted entry points --------------------------------------------------------
     @functools.cached_property
     def _jitted(self):
-        def aff(spec, keys, points, colors, text, exclude):  # exclude may be None
-            return jax.vmap(lambda k, p, c, e, x: self._affordance_one(k, p, c, e, spec, x))(
-                keys, points, colors, text, exclude)
+        def aff(spec, keys, points, colors, text, exclude, target):  # both may be None
+            return jax.vmap(lambda k, p, c, e, x, g: self._affordance_one(k, p, c, e, spec, x,
+                                                                          g))(
+                keys, points, colors, text, exclude, target)
 
         def mot(spec, keys, points, feats, text, mask):
             return jax.vmap(lambda k, p, f, e, m: self._motion_one(k, p, f, e, m, spec))(
                 keys, points, feats, text, mask)
 
-        def affs(spec, keys, points, colors, text, exclude):  # keys [B, C]
-            return jax.vmap(lambda k, p, c, e, x: adm_maps_one(
+        def affs(spec, keys, points, colors, text, exclude, target):  # keys [B, C]
+            return jax.vmap(lambda k, p, c, e, x, g: adm_maps_one(
                 self.adm_net, self.adm_schedule, (self.a_mean, self.a_std), k, p, c,
-                self._check_text(e), spec, x))(keys, points, colors, text, exclude)
+                self._check_text(e), spec, x, g))(keys, points, colors, text, exclude, target)
 
         def mots(spec, keys, points, feats, text, mask):  # keys [B, M]
             return jax.vmap(lambda k, p, f, e, m: self._motions_one(k, p, f, e, m, spec))(
@@ -301,12 +313,13 @@ class AffordancePipeline:
         return jnp.concatenate([first[:, None], more], axis=1)
 
     def sample_affordances(self, key, points, colors, text_emb, spec, exclude=None,
-                           candidates: int = 1):
+                           candidates: int = 1, target=None):
         """``candidates`` maps per example, ``[B, C, N, 6]`` (see :meth:`sample_affordance`;
         candidate 0 is its map). The backbone runs once per crop."""
         keys = self._candidate_keys(key, points.shape[0], int(candidates))
-        return self._jitted[2](spec, keys, points, colors, text_emb, self._exclude(exclude,
-                                                                                 points))
+        return self._jitted[2](spec, keys, points, colors, text_emb,
+                               self._exclude(exclude, points),
+                               self._target(target, points))
 
     def sample_motions(self, key, points, scene_feat, text_emb, mask, spec,
                        candidates: int = 1):
@@ -316,27 +329,43 @@ class AffordancePipeline:
         return self._jitted[3](spec, keys, points, scene_feat, text_emb, mask)
 
     def sample_affordance(self, key, points, colors, text_emb, spec=SamplerSpec(steps=50),
-                          exclude=None):
+                          exclude=None, target=None):
         """``[B,N,3], [B,N,3], text -> [B,N,6]`` affordance maps in [0, 1] (``text``: see
         :meth:`embed_text`).
 
         ``exclude``: optional ``[B,N]`` bool, points known not to be the target (e.g. the other
         objects of the target's class once the target is known). At every step the clean
         estimate is set to 0 (no affordance) on them, as in inpainting, so the sampler puts the
-        map elsewhere; all False gives the same maps as None."""
+        map elsewhere; all False gives the same maps as None.
+
+        ``target``: optional ``[B,N]`` bool, the points of a known target object, for an ADM
+        that reads one (:attr:`reads_target`): its maps are then drawn for that object. None
+        (or all False) = no target known: the map comes from the text alone."""
         keys = jax.random.split(key, points.shape[0])
         return self._jitted[0](spec, keys, points, colors, text_emb,
-                               self._exclude(exclude, points))
+                               self._exclude(exclude, points), self._target(target, points))
+
+    @property
+    def reads_target(self) -> bool:
+        """Whether the ADM reads a known target object (trained with
+        ``model.target_input=true``): :meth:`sample` then passes its ``target`` to it."""
+        return bool(self.adm_net.adm.cfg.target_input)
 
     @staticmethod
-    def _exclude(exclude, points):
+    def _exclude(exclude, points, name="exclude"):
         if exclude is None:
             return None
         exclude = jnp.asarray(exclude, bool)
         if exclude.shape != points.shape[:2]:
-            raise ValueError(f"exclude must be [B, N] = {tuple(points.shape[:2])}, got "
+            raise ValueError(f"{name} must be [B, N] = {tuple(points.shape[:2])}, got "
                              f"{tuple(exclude.shape)}")
         return exclude
+
+    def _target(self, target, points):
+        if target is not None and not self.reads_target:
+            raise ValueError("this ADM has no target input (model.target_input=false): leave "
+                             "target out, or load an ADM trained with model.target_input=true")
+        return self._exclude(target, points, "target")
 
     def sample_motion(self, key, points, scene_feat, text_emb, mask, spec=SamplerSpec(steps=50)):
         """``scene_feat``: the affordance map [B,N,6] (or rgb for the one-stage model);
@@ -357,7 +386,8 @@ class AffordancePipeline:
         in the crop frame; the ADM's map on them (returned as ``view_affordance``) is carried
         to the crop's points. ``exclude``: ``[B,N]`` crop points the ADM's map must leave out
         (:meth:`sample_affordance`; not with ``view``). ``target`` ``[B,N]`` bool, the points of
-        a known target object, and ``candidates`` C > 1: the ADM draws C maps per example and
+        a known target object (an ADM that reads one, :attr:`reads_target`, is told it), and
+        ``candidates`` C > 1: the ADM draws C maps per example and
         keeps the one that lights the target most (:meth:`best_of`). ``motion_candidates`` M > 1
         (with ``target``): the AMDM draws M motions per example from the same map and keeps the
         one that comes closest to the target at the anchor frame (:meth:`best_motion`;
@@ -394,19 +424,22 @@ class AffordancePipeline:
                 raise ValueError("this ADM was trained on the room view (crop.centre=room): pass "
                                  "view={'points', 'colors', 'in_crop'} (load_cases and "
                                  "case_inputs build it), or maps as affordance=")
+            told = target if self.reads_target else None
             if candidates > 1:
                 aff = self.best_of(ka, points, colors, text_emb, adm, exclude, target,
                                    candidates)
             else:
-                aff = self.sample_affordance(ka, points, colors, text_emb, adm, exclude)
+                aff = self.sample_affordance(ka, points, colors, text_emb, adm, exclude, told)
         return {**out, "affordance": aff, "joints": motion(aff)}
 
     def best_of(self, key, points, colors, text_emb, spec, exclude, target, candidates: int):
         """Of ``candidates`` ADM maps per example (:meth:`sample_affordances`; the first is
         :meth:`sample_affordance`'s), the one that lights ``target`` ``[B,N]`` most: the
         largest mean over its points of the strongest channel (the score generate's region
-        choice uses). An example with no target point keeps the first."""
-        maps = self.sample_affordances(key, points, colors, text_emb, spec, exclude, candidates)
+        choice uses). An example with no target point keeps the first. An ADM that reads a
+        known target (:attr:`reads_target`) is told ``target``."""
+        maps = self.sample_affordances(key, points, colors, text_emb, spec, exclude, candidates,
+                                       target if self.reads_target else None)
         t = jnp.asarray(target, jnp.float32)[:, None]  # [B,1,N]
         score = (maps.max(-1) * t).sum(-1) / jnp.maximum(t.sum(-1), 1.0)  # [B,C]
         best = jnp.argmax(score, axis=1)  # ties (no target): the first

@@ -8,6 +8,8 @@ x0 prediction of the normalised affordance, with
 - ``cond["features"] [B, N, feature_dim]``: the frozen segmentation backbone's per-point
   features (computed outside: the module never sees the backbone);
 - ``cond["xyz"] [B, N, 3]``: point positions (crop frame, metres);
+- with ``ADMConfig.target_input`` (Perceiver only): ``cond["target"] [B, N]``, 1 on a known
+  target object's points, 0 elsewhere (all 0 = none known), appended to the per-point input;
 - optional ``cond["drop_text"] [B]`` (bool / 0-1): zero those rows' text embedding inside the
   model (and mask out their token latents); the caller may equally zero ``cond["text"]`` itself
   (and ``cond["text_mask"]``);
@@ -62,10 +64,17 @@ def pooled_text(text):
 
 
 def _inputs(cfg: ADMConfig, x, t, cond):
-    """Validated float32 inputs: (x, t [B], text [B, Dt], features, xyz)."""
+    """Validated float32 inputs: (x, t [B], text [B, Dt], features, xyz); with
+    ``cfg.target_input`` the features end with the target channel (``cond["target"]``)."""
     x = jnp.asarray(x, jnp.float32)
     b, n = x.shape[:2]
     want = {"text": (b, cfg.text_dim), "features": (b, n, cfg.feature_dim), "xyz": (b, n, 3)}
+    if cfg.target_input:
+        if "target" not in cond:
+            raise KeyError("this ADM reads a known target (target_input=True): cond needs "
+                           f"'target' {[b, n]} (all zeros when no target is known); got keys "
+                           f"{sorted(cond)}")
+        want["target"] = (b, n)
     if x.shape[-1] != cfg.affordance_dim:
         raise ValueError(f"x must be [B, N, {cfg.affordance_dim}], got {x.shape}")
     out = {}
@@ -80,7 +89,10 @@ def _inputs(cfg: ADMConfig, x, t, cond):
     if cond.get("drop_text") is not None:
         text = text * (1.0 - jnp.asarray(cond["drop_text"], jnp.float32).reshape(b, 1))
     t = jnp.broadcast_to(jnp.asarray(t), (b,))
-    return x, t, text, out["features"], out["xyz"]
+    feats = out["features"]
+    if cfg.target_input:
+        feats = jnp.concatenate([feats, out["target"][..., None]], axis=-1)
+    return x, t, text, feats, out["xyz"]
 
 
 def _token_inputs(cfg: ADMConfig, b: int, cond):
@@ -113,7 +125,8 @@ class ADM(nnx.Module):
             self.token_norm = nnx.LayerNorm(cfg.text_dim, epsilon=1e-5, rngs=rngs)
             self.token_proj = nnx.Linear(cfg.text_dim, lw, rngs=rngs)
         self.time_proj = nnx.Linear(cfg.time_dim, lw, rngs=rngs)
-        self.point_in = nnx.Linear(cfg.affordance_dim + cfg.feature_dim + 3, pw, rngs=rngs)
+        n_in = cfg.affordance_dim + cfg.feature_dim + int(cfg.target_input) + 3
+        self.point_in = nnx.Linear(n_in, pw, rngs=rngs)
         self.encode = PerceiverLayer(lw, pw, h, **kw)
         self.process = nnx.List([PerceiverLayer(lw, None, h, **kw) for _ in range(cfg.self_layers)])
         self.decode_in = nnx.Linear(pw, pw, rngs=rngs)

@@ -171,6 +171,13 @@ class ADMConfig(_Presets):
         pooled vector averages the words away: "the chair closest to the window" and "...
         farthest from the window" have cosine 0.90 in MiniLM; token latents keep the relation
         word and the anchor's name apart.
+      target_input: the ADM also reads a known target object (``perceiver`` only):
+        ``cond["target"] [B, N]``, 1 on the target's points and 0 elsewhere (all 0 = no
+        target known: the map is grounded from the text alone), one more per-point input.
+        ``jaxmotion generate`` passes the object the scene graph (or ``--object``) chose, so
+        the map lights that object's affordance rather than what the pooled sentence
+        suggests; trained with the target dropped at ``target_drop`` (training config) so
+        the same weights serve both.
       num_heads, self_layers: attention heads; self-attention layers on the latents.
       widening: MLP widening factor of the Perceiver layers.
       dropout: attention dropout of the Perceiver (residual dropout is 0, as the authors').
@@ -188,6 +195,7 @@ class ADMConfig(_Presets):
     num_heads: int = 4
     self_layers: int = 2
     text_tokens: int = 0
+    target_input: bool = False
     widening: int = 1
     dropout: float = 0.1
     mlp_dims: tuple[int, ...] = (128, 128)
@@ -219,6 +227,9 @@ class ADMConfig(_Presets):
         if self.text_tokens and self.arch != "perceiver":
             raise ValueError(f"text_tokens={self.text_tokens} needs arch='perceiver' (the "
                              f"{self.arch!r} ADM reads the pooled text only); set text_tokens=0")
+        if self.target_input and self.arch != "perceiver":
+            raise ValueError(f"target_input needs arch='perceiver' (the {self.arch!r} ADM has no "
+                             "target channel); set target_input=false")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -210,6 +210,7 @@ class ADMTask(_DataTask):
         if getattr(cfg, "init_from", ""):
             _init_adm(adm, cfg)
         self.sigma = float(cfg.affordance.sigma)
+        self.target_drop = float(getattr(cfg, "target_drop", 0.0))
         return ADMNet(backbone, adm)
 
     # -- selection by grounding (the training loop's probe) ---------------------------------
@@ -254,9 +255,11 @@ class ADMTask(_DataTask):
         from jaxmotion.sample import adm_map_one
 
         keys = jax.random.split(key, batch["points"].shape[0])
-        maps = jax.vmap(lambda k, p, c, t: adm_map_one(
-            model, self.schedule, (self.mean, self.std), k, p, c, t, self.probe_spec))(
-            keys, batch["points"], batch["colors"], _text_condition(batch))
+        # an ADM with the target input is probed as generate runs it: told the target
+        target = batch["target_mask"] if model.adm.cfg.target_input else None
+        maps = jax.vmap(lambda k, p, c, t, m: adm_map_one(
+            model, self.schedule, (self.mean, self.std), k, p, c, t, self.probe_spec,
+            target=m))(keys, batch["points"], batch["colors"], _text_condition(batch), target)
         d = affordance_to_distance(maps, self.sigma)
         inst = jax.vmap(affordance_grounding)(d, batch["target_mask"])
         cls = jax.vmap(affordance_grounding)(d, batch["target_class_mask"])
@@ -278,6 +281,11 @@ class ADMTask(_DataTask):
         feats = model.features(batch["points"], batch["colors"])
         x0 = (batch["affordance"] - self.mean) / self.std
         fixed = {"features": feats, "xyz": batch["points"]}
+        if model.adm.cfg.target_input:  # the known target, dropped per example (target_drop)
+            key, k_drop = jax.random.split(key)
+            p = self.target_drop if train else 0.0
+            keep = jax.random.uniform(k_drop, (x0.shape[0], 1)) >= p
+            fixed["target"] = jnp.asarray(batch["target_mask"], jnp.float32) * keep
 
         def denoise(x, t, cond):
             return model.adm(x, t, {**adm_text_cond(cond["text"]), **fixed},
@@ -299,12 +307,18 @@ def _init_adm(adm, cfg) -> None:
         raise ValueError(f"init_from={cfg.init_from}: {path} is a {saved.get('task')!r} "
                          "checkpoint, not an ADM one")
     mine = config_to_dict(cfg.model)
-    theirs = saved["model"]
+    theirs = {"target_input": False, **saved["model"]}
+    grow = mine["target_input"] and not theirs["target_input"]
     diff = [f"{k} ({theirs.get(k)!r} vs {mine[k]!r})" for k in sorted(mine)
-            if theirs.get(k) != mine[k]]
+            if theirs.get(k) != mine[k] and not (grow and k == "target_input")]
     if diff:
         raise ValueError(f"init_from={cfg.init_from}: its model config differs in "
                          f"{', '.join(diff)}; pass the same model.* settings")
+    if grow:  # the target channel's input weights start at 0: the same function as theirs
+        name = next(k for k in tensors if k.endswith("adm/point_in/kernel"))
+        kernel = np.asarray(tensors[name])
+        at = cfg.model.affordance_dim + cfg.model.feature_dim  # [x, features, target, xyz]
+        tensors = {**tensors, name: np.insert(kernel, at, 0.0, axis=0)}
     apply_weights(adm, tensors, prefix="adm/", source=str(path))
 
 

@@ -40,7 +40,10 @@ Steps:
    map's clean estimate is set to "no affordance" on their points (``exclude`` of
    :meth:`~jaxmotion.sample.AffordancePipeline.sample_affordance`), so the sampler puts the
    map elsewhere; the shipped ADM otherwise often lights another chair than the chosen one.
-   The ADM also draws ``adm_candidates`` maps per sample (default 16) and the one lighting the
+   An ADM that reads a known target (``model.target_input``, the shipped one since session
+   11) is also told the target's points, and draws its maps for that object; without a
+   known target it is told none (an all-zero mask) and reads the text alone, as for the
+   region choice of step 2. The ADM also draws ``adm_candidates`` maps per sample (default 16) and the one lighting the
    target most is kept. (Neither for a room-view ADM, whose map comes from its view.) Then
    the AMDM draws ``motion_candidates`` motions from that map (default 4) and the one whose
    body comes closest to the target at the anchor frame (the last frame; the first when the

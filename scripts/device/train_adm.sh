@@ -14,7 +14,8 @@
 #      resume on a fresh machine with init_from=<model.safetensors> instead.
 # Device call:  LIMIT=550 bash scripts/device/train_adm.sh      (carry: [".dev"])
 # Settings (environment): SCENES, SPLIT, D (work folder there), TRAIN_ARGS (key=value overrides
-# appended to the defaults below, e.g. "crop.centre=room crop.size=8" for the room view).
+# appended to the defaults below, e.g. "crop.centre=room crop.size=8" for the room view, or
+# "model.target_input=true" for the ADM that reads a known target, shipped since session 11).
 set -u
 export PYTHONUNBUFFERED=1
 T0=$(date +%s)

@@ -304,8 +304,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "frame (default 4, at most 16; 1 = one motion)")
     p.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
     p.add_argument("--checkpoints", nargs="+", default=None, metavar="PATH",
-                   help="a folder with adm.safetensors and amdm.safetensors, or the ADM and "
-                   "AMDM training workdirs (default: the shipped checkpoints)")
+                   help="a folder with adm.safetensors and amdm.safetensors (and optionally "
+                   "adm_text.safetensors, the ADM used when no target object is known), or the "
+                   "ADM and AMDM training workdirs (default: the shipped checkpoints)")
     p.add_argument("--video", choices=("gif", "mp4", "none"), default="gif")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=_cmd_generate)

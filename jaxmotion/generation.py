@@ -43,7 +43,10 @@ Steps:
    An ADM that reads a known target (``model.target_input``, the shipped one since session
    11) is also told the target's points, and draws its maps for that object; without a
    known target it is told none (an all-zero mask) and reads the text alone, as for the
-   region choice of step 2. The ADM also draws ``adm_candidates`` maps per sample (default 16) and the one lighting the
+   region choice of step 2. A checkpoint folder (the shipped one too) may hold a text-only
+   ADM beside it, ``adm_text.safetensors``: that one is used whenever no target is known
+   (step 2, and the maps when the region came from tiles); told no target, the ADM that
+   reads one draws worse maps. The ADM also draws ``adm_candidates`` maps per sample (default 16) and the one lighting the
    target most is kept. (Neither for a room-view ADM, whose map comes from its view.) Then
    the AMDM draws ``motion_candidates`` motions from that map (default 4) and the one whose
    body comes closest to the target at the anchor frame (the last frame; the first when the
@@ -52,7 +55,8 @@ Steps:
 
 The checkpoints default to the ones shipped in the package (``jaxmotion/assets``, trained on the
 synthetic world by the commands in ``docs/results.md``); pass ``checkpoints=DIR`` with
-``adm.safetensors`` and ``amdm.safetensors`` (or two training workdirs as a tuple) for others.
+``adm.safetensors`` and ``amdm.safetensors`` (and optionally ``adm_text.safetensors``, step 3)
+or two training workdirs as a tuple for others.
 """
 
 from __future__ import annotations
@@ -144,6 +148,25 @@ def build_demo_scene(num_points: int = DEMO_POINTS):
 def default_checkpoints() -> tuple[Path, Path]:
     """Paths of the shipped ADM and AMDM weights."""
     return _ASSETS / "adm.safetensors", _ASSETS / "amdm.safetensors"
+
+
+#: In a checkpoint folder (the shipped one too), the ADM used when no target object is known,
+#: beside an ``adm.safetensors`` that reads a known target (``model.target_input``): such an
+#: ADM, told no target, draws worse maps than one trained on the text alone (docs/results.md,
+#: "The ADM told the target"). Optional: without it ``adm.safetensors`` serves both.
+TEXT_ADM = "adm_text.safetensors"
+
+
+def _text_adm(adm_file: Path) -> Path:
+    """The ADM for when no target is known: :data:`TEXT_ADM` beside a folder's
+    ``adm.safetensors``, else the ADM itself."""
+    other = Path(adm_file).with_name(TEXT_ADM)
+    return other if Path(adm_file).name == "adm.safetensors" and other.is_file() else Path(adm_file)
+
+
+def _view(adm_config: dict) -> str:
+    """An ADM's ``crop.centre`` (``motion``, the crop view, when its file predates it)."""
+    return adm_config.get("crop", {}).get("centre", "motion")
 
 
 def _resolve_checkpoints(checkpoints) -> tuple[Path, Path]:
@@ -660,14 +683,23 @@ def generate(
     if mcfg.get("task") != "amdm" or "crop" not in mcfg:
         raise GenerateError(f"checkpoints {adm_file} and {amdm_file} do not load together: "
                             f"{amdm_file} is a {mcfg.get('task')!r} checkpoint, not an AMDM one")
-    get_pipe = functools.partial(_pipeline, str(adm_file), str(amdm_file))
     crop_cfg = config_from_dict(CropConfig, mcfg["crop"])
     spec = CropSpec(**{**crop_cfg.__dict__, "rotate": False})
     t_frames, fps = int(mcfg["max_frames"]), 30.0
     lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
     adm_cfg = _weights_config(adm_file)
     adm_tokens = int(adm_cfg.get("model", {}).get("text_tokens", 0))
-    room_view = adm_cfg.get("crop", {}).get("centre") == "room"
+    room_view = _view(adm_cfg) == "room"
+    # the ADM when no target is known (region choice, tiles): the folder's text-only one
+    text_adm_file = _text_adm(adm_file)
+    if text_adm_file != Path(adm_file):
+        t_cfg = _weights_config(text_adm_file)
+        if (int(t_cfg.get("model", {}).get("text_tokens", 0)) != adm_tokens
+                or _view(t_cfg) != _view(adm_cfg)):
+            raise GenerateError(f"{text_adm_file} and {adm_file} must read the text the same way "
+                                "(model.text_tokens) and see the same view (crop.centre); "
+                                f"remove {text_adm_file.name} to use {Path(adm_file).name} alone")
+    get_text_pipe = functools.partial(_pipeline, str(text_adm_file), str(amdm_file))
     emb = _embed(text, xla_cache / "text-embeddings", adm_tokens)
     # the root key's two stage keys (region / room view, then sampling) are split inside the
     # compiled programs, or eagerly only on the paths that need the first: an eager split is
@@ -689,7 +721,7 @@ def generate(
     if room_view:
         view_index, view_maps = _room_view_maps(
             room, adm_cfg, jax.tree.map(lambda a: a[0], emb), stage_key(0), adm_sampler, k, seed,
-            aot_dir, _digest(versions, adm_sampler, Path(adm_file)), get_pipe)
+            aot_dir, _digest(versions, adm_sampler, text_adm_file), get_text_pipe)
         lap("adm")
     if object_id is not None:
         centre = _object_centre(_object(room, object_id), lo, hi, spec.size)
@@ -698,7 +730,7 @@ def generate(
         centre, chosen, how = _find_region(
             room, text, grounding, spec,
             view=(view_index, view_maps) if room_view else None,
-            adm=(get_pipe, emb, lambda: stage_key(0), adm_sampler, seed))
+            adm=(get_text_pipe, emb, lambda: stage_key(0), adm_sampler, seed))
         if not room_view:
             lap("region")
     rng = np.random.default_rng([int(seed), 1])
@@ -726,8 +758,11 @@ def generate(
         args = (*args, np.asarray(AffordancePipeline.carry(tile(pts), tile(view_in_crop),
                                                            view_maps)))
 
+    # the maps of a known target come from the ADM told it; else from the text-only one
+    main_adm = Path(adm_file) if chosen is not None else text_adm_file
+
     def build_sampler():
-        pipe = get_pipe()
+        pipe = _pipeline(str(main_adm), str(amdm_file))
         main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]  # noqa: E731
         if room_view:
             return lambda kd, p, c, e, m, a, t, f: pipe.sample(
@@ -741,7 +776,7 @@ def generate(
         args = (*args, tile(exclude))
     args = (*args, on_target, first)
     res = _aot_call(aot_dir, "sample", _digest(versions, adm_sampler, amdm_sampler, n_cand,
-                                              n_mot, Path(adm_file), Path(amdm_file)),
+                                              n_mot, main_adm, Path(amdm_file)),
                     build_sampler, args)
     res = jax.device_get(res)
     joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)

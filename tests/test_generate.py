@@ -329,3 +329,36 @@ def test_known_target_keeps_the_map_off_its_class_mates(tiny_runs, ckpt):
     assert line["excluded"] == list(others)
     # the target is known: the default number of maps (recorded in the result and its line)
     assert r.adm_candidates == line["adm_candidates"] == jaxmotion.generation.DEFAULT_ADM_CANDIDATES
+
+
+def test_text_only_adm_when_no_target_is_known(ckpt, tmp_path, monkeypatch):
+    """A folder's adm_text.safetensors draws the maps whenever no target is known (tiles,
+    region choice); adm.safetensors those of a known target."""
+    import shutil
+    from pathlib import Path
+
+    import jaxmotion.generation as G
+
+    folder = tmp_path / "ckpt"
+    folder.mkdir()
+    shutil.copy(Path(ckpt[0]) / "model.safetensors", folder / "adm.safetensors")
+    shutil.copy(Path(ckpt[1]) / "model.safetensors", folder / "amdm.safetensors")
+    assert G._text_adm(folder / "adm.safetensors") == folder / "adm.safetensors"  # none there
+    shutil.copy(Path(ckpt[0]) / "model.safetensors", folder / G.TEXT_ADM)
+    assert G._text_adm(folder / "adm.safetensors") == folder / G.TEXT_ADM
+    assert G._text_adm(Path(ckpt[0]) / "model.safetensors").name == "model.safetensors"
+    used = []
+    real = G._pipeline
+
+    def spy(adm, amdm):
+        used.append(Path(adm).name)
+        return real(adm, amdm)
+
+    monkeypatch.setattr(G, "_pipeline", spy)
+    r = jaxmotion.generate("demo", "dance around for a while", checkpoints=folder, fit=False,
+                           aot=False, **FAST)
+    assert r.target_id is None and used and set(used) == {G.TEXT_ADM}
+    used.clear()
+    r = jaxmotion.generate("demo", "sit on the chair next to the table", checkpoints=folder,
+                           fit=False, aot=False, **FAST)
+    assert r.target_id is not None and used == ["adm.safetensors"]

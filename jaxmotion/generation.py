@@ -46,8 +46,8 @@ Steps:
    region choice of step 2. A checkpoint folder (the shipped one too) may hold a text-only
    ADM beside it, ``adm_text.safetensors``: that one is used whenever no target is known
    (step 2, and the maps when the region came from tiles); told no target, the ADM that
-   reads one draws worse maps. The ADM also draws ``adm_candidates`` maps per sample (default 16) and the one lighting the
-   target most is kept. (Neither for a room-view ADM, whose map comes from its view.) Then
+   reads one draws worse maps. The ADM also draws ``adm_candidates`` maps per sample (default
+   16) and the one lighting the target most is kept. (Neither for a room-view ADM, whose map comes from its view.) Then
    the AMDM draws ``motion_candidates`` motions from that map (default 4) and the one whose
    body comes closest to the target at the anchor frame (the last frame; the first when the
    text says to get up from it) is kept.
@@ -167,6 +167,11 @@ def _text_adm(adm_file: Path) -> Path:
 def _view(adm_config: dict) -> str:
     """An ADM's ``crop.centre`` (``motion``, the crop view, when its file predates it)."""
     return adm_config.get("crop", {}).get("centre", "motion")
+
+
+def _text_tokens(adm_config: dict) -> int:
+    """How many token states an ADM reads (``model.text_tokens``; 0 = the pooled text)."""
+    return int(adm_config.get("model", {}).get("text_tokens", 0))
 
 
 def _resolve_checkpoints(checkpoints) -> tuple[Path, Path]:
@@ -688,14 +693,13 @@ def generate(
     t_frames, fps = int(mcfg["max_frames"]), 30.0
     lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
     adm_cfg = _weights_config(adm_file)
-    adm_tokens = int(adm_cfg.get("model", {}).get("text_tokens", 0))
+    adm_tokens = _text_tokens(adm_cfg)
     room_view = _view(adm_cfg) == "room"
     # the ADM when no target is known (region choice, tiles): the folder's text-only one
     text_adm_file = _text_adm(adm_file)
     if text_adm_file != Path(adm_file):
         t_cfg = _weights_config(text_adm_file)
-        if (int(t_cfg.get("model", {}).get("text_tokens", 0)) != adm_tokens
-                or _view(t_cfg) != _view(adm_cfg)):
+        if _text_tokens(t_cfg) != adm_tokens or _view(t_cfg) != _view(adm_cfg):
             raise GenerateError(f"{text_adm_file} and {adm_file} must read the text the same way "
                                 "(model.text_tokens) and see the same view (crop.centre); "
                                 f"remove {text_adm_file.name} to use {Path(adm_file).name} alone")

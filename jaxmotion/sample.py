@@ -319,7 +319,7 @@ class AffordancePipeline:
         keys = self._candidate_keys(key, points.shape[0], int(candidates))
         return self._jitted[2](spec, keys, points, colors, text_emb,
                                self._exclude(exclude, points),
-                               self._target(target, points))
+                               self._exclude(target, points, "target"))
 
     def sample_motions(self, key, points, scene_feat, text_emb, mask, spec,
                        candidates: int = 1):
@@ -343,7 +343,8 @@ class AffordancePipeline:
         (or all False) = no target known: the map comes from the text alone."""
         keys = jax.random.split(key, points.shape[0])
         return self._jitted[0](spec, keys, points, colors, text_emb,
-                               self._exclude(exclude, points), self._target(target, points))
+                               self._exclude(exclude, points),
+                               self._exclude(target, points, "target"))
 
     @property
     def reads_target(self) -> bool:
@@ -360,12 +361,6 @@ class AffordancePipeline:
             raise ValueError(f"{name} must be [B, N] = {tuple(points.shape[:2])}, got "
                              f"{tuple(exclude.shape)}")
         return exclude
-
-    def _target(self, target, points):
-        if target is not None and not self.reads_target:
-            raise ValueError("this ADM has no target input (model.target_input=false): leave "
-                             "target out, or load an ADM trained with model.target_input=true")
-        return self._exclude(target, points, "target")
 
     def sample_motion(self, key, points, scene_feat, text_emb, mask, spec=SamplerSpec(steps=50)):
         """``scene_feat``: the affordance map [B,N,6] (or rgb for the one-stage model);

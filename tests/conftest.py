@@ -42,3 +42,29 @@ def tiny_runs(tmp_path_factory):
         cfg = load_config(f"configs/{name}.py", [*common, f"workdir={root / name}", *extra])
         out[name] = (cfg, train(cfg, get_task(cfg)))
     return root, out
+
+
+@pytest.fixture(scope="session")
+def fine_tune_adm(tiny_runs, tmp_path_factory):
+    """``fine_tune_adm(name, *overrides)``: a tiny ADM fine-tuned for 10 steps from the tiny
+    ADM of ``tiny_runs`` (init_from), with its own backbone (another test removes the shared
+    one; ADM files embed theirs). Returns ``(root, data, workdir, config, TrainResult)``."""
+    from jaxmotion.config import load_config
+    from jaxmotion.train import train
+    from jaxmotion.train.tasks import get_task
+
+    root, out = tiny_runs
+
+    def run(name: str, *overrides: str):
+        here = tmp_path_factory.mktemp(name)
+        work, seg = here / f"adm_{name}", here / "segmentation"
+        seg_cfg = load_config("configs/segmentation.py", [
+            f"data_dir={out['data']}", "preset=tiny", "steps=5", f"workdir={seg}"])
+        train(seg_cfg, get_task(seg_cfg))
+        cfg = load_config("configs/adm.py", [
+            f"data_dir={out['data']}", "preset=tiny", "steps=10", "log_every=5",
+            "eval_every=10", f"workdir={work}", f"backbone_workdir={seg}",
+            f"init_from={root / 'adm'}", *overrides])
+        return root, out["data"], work, cfg, train(cfg, get_task(cfg))
+
+    return run

@@ -103,24 +103,9 @@ def test_crop_centre_is_validated():
 
 # --- training, pipeline, eval, probe, generate ---------------------------------------------------
 @pytest.fixture(scope="module")
-def room_runs(tiny_runs, tmp_path_factory):
+def room_runs(fine_tune_adm):
     """A tiny room-view ADM fine-tuned from the tiny crop-view ADM (init_from)."""
-    from jaxmotion.config import load_config
-    from jaxmotion.train import train
-    from jaxmotion.train.tasks import get_task
-
-    root, out = tiny_runs
-    here = tmp_path_factory.mktemp("room")
-    work, seg = here / "adm_room", here / "segmentation"
-    # its own backbone: another test removes the shared one (ADM files embed theirs)
-    seg_cfg = load_config("configs/segmentation.py", [
-        f"data_dir={out['data']}", "preset=tiny", "steps=5", f"workdir={seg}"])
-    train(seg_cfg, get_task(seg_cfg))
-    cfg = load_config("configs/adm.py", [
-        f"data_dir={out['data']}", "preset=tiny", "steps=10", "log_every=5", "eval_every=10",
-        f"workdir={work}", f"backbone_workdir={seg}",
-        f"init_from={root / 'adm'}", "crop.centre=room", "crop.size=8"])
-    return root, out["data"], work, cfg, train(cfg, get_task(cfg))
+    return fine_tune_adm("room", "crop.centre=room", "crop.size=8")
 
 
 def test_init_from_starts_from_the_other_runs_weights(room_runs):

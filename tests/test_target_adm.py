@@ -45,25 +45,10 @@ def test_target_input_is_one_more_point_input_and_is_checked():
 
 
 @pytest.fixture(scope="module")
-def target_run(tiny_runs, tmp_path_factory):
+def target_run(fine_tune_adm):
     """A tiny target-reading ADM fine-tuned from the tiny ADM (init_from), probed as it trains."""
-    from jaxmotion.config import load_config
-    from jaxmotion.train import train
-    from jaxmotion.train.tasks import get_task
-
-    root, out = tiny_runs
-    here = tmp_path_factory.mktemp("target")
-    work, seg = here / "adm_target", here / "segmentation"
-    # its own backbone: another test removes the shared one (ADM files embed theirs)
-    seg_cfg = load_config("configs/segmentation.py", [
-        f"data_dir={out['data']}", "preset=tiny", "steps=5", f"workdir={seg}"])
-    train(seg_cfg, get_task(seg_cfg))
-    cfg = load_config("configs/adm.py", [
-        f"data_dir={out['data']}", "preset=tiny", "steps=10", "log_every=5", "eval_every=10",
-        f"workdir={work}", f"backbone_workdir={seg}", f"init_from={root / 'adm'}",
-        "model.target_input=true", "grounding_every=5", "grounding_cases=4",
-        "grounding_steps=2"])
-    return root, out["data"], work, cfg, train(cfg, get_task(cfg))
+    return fine_tune_adm("target", "model.target_input=true", "grounding_every=5",
+                         "grounding_cases=4", "grounding_steps=2")
 
 
 def test_init_from_an_adm_without_the_target_starts_as_that_adm(target_run):

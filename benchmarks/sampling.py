@@ -31,8 +31,9 @@ from flax import nnx
 from jaxmotion.diffusion import make_schedule
 from jaxmotion.models import AMDM, ADMConfig, AMDMConfig, PointTransformerConfig, make_adm
 from jaxmotion.models import PointTransformerSeg
-from jaxmotion.sample import AffordancePipeline, SamplerSpec
-from jaxmotion.train.tasks import ADMNet
+from jaxmotion.pipelines.affordance import AffordancePipeline
+from jaxmotion.diffusion import SamplerSpec
+from jaxmotion.models.frozen import ADMNet
 
 SAMPLERS = [("DDPM-1000", "ddpm", 1000), ("DDPM-500", "ddpm", 500), ("DDIM-100", "ddim", 100),
             ("DDIM-50", "ddim", 50), ("DDIM-20", "ddim", 20), ("DDIM-10", "ddim", 10)]

@@ -17,25 +17,29 @@ from typing import TYPE_CHECKING
 from jaxmotion._version import __version__
 
 _SUBMODULES = (
-    "body", "config", "data", "diffusion", "eval", "export", "generation", "geometry", "models",
-    "motion", "scene", "text", "train", "viz",
+    "body", "config", "constants", "data", "diffusion", "errors", "eval", "export", "generation",
+    "geometry", "grounding", "models", "motion", "options", "pipelines", "result", "scene",
+    "text", "train", "viz",
 )
 
 __all__ = ["__version__", "generate", *_SUBMODULES]
 
 
-def generate(scene, text: str = "sit on the chair next to the table", **kwargs):
+def generate(scene, text: str | None = None, **kwargs):
     """Generate motions of a person doing ``text`` in ``scene`` ("demo", a path or a Scene).
 
-    See :func:`jaxmotion.generation.generate` for the options; returns a
-    :class:`jaxmotion.generation.Generation` (``.joints``, ``.smplx``, ``.save(dir)``).
+    See :func:`jaxmotion.generation.generate` for the options
+    (:class:`jaxmotion.options.GenerateOptions`); returns a
+    :class:`jaxmotion.result.Generation` (``.joints``, ``.smplx``, ``.save(dir)``).
     """
-    from jaxmotion.generation import generate as _generate
+    from jaxmotion.generation import DEFAULT_TEXT
+    from jaxmotion.generation import generate as run
 
-    return _generate(scene, text, **kwargs)
+    return run(scene, DEFAULT_TEXT if text is None else text, **kwargs)
+
 
 if TYPE_CHECKING:  # pragma: no cover
-    from jaxmotion import config, data, geometry, motion, scene, text, train, viz  # noqa: F401
+    from jaxmotion import config, data, geometry, motion, scene, text, viz  # noqa: F401
 
 
 def __getattr__(name: str):

@@ -45,7 +45,7 @@ def _cmd_scene_info(args: argparse.Namespace) -> int:
         "instances": int(len(set(scene.instance[scene.instance >= 0].tolist()))),
         "objects": len(scene.objects),
     }
-    from jaxmotion.generation import object_table
+    from jaxmotion.grounding import object_table
 
     objects = object_table(scene)
     if objects:
@@ -94,7 +94,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 def _cmd_sample(args: argparse.Namespace) -> int:
     from jaxmotion._jax_setup import enable_compilation_cache
-    from jaxmotion.sample import SamplerSpec, sample_split
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.sample import sample_split
 
     enable_compilation_cache()
     adm = SamplerSpec(args.adm_sampler or args.sampler, args.adm_steps or args.steps, args.eta,
@@ -133,7 +134,8 @@ def _unit_arg(text: str) -> float:
 def _cmd_generate(args: argparse.Namespace) -> int:
     import time
 
-    from jaxmotion.generation import generate, summary
+    from jaxmotion.generation import generate
+    from jaxmotion.export.folder import summary
 
     t0 = time.perf_counter()
     if args.checkpoints and len(args.checkpoints) not in (1, 2):

@@ -413,14 +413,14 @@ def test_mannequin_shape_basis_is_kept_next_to_the_compilation_cache(tmp_path):
     from jaxmotion.body import model as M
 
     b0 = np.zeros(10)
-    fresh = M._mannequin_shape_basis(b0, cache_root=None)
-    first = M._mannequin_shape_basis(b0, cache_root=tmp_path)
+    fresh = M.mannequin_shape_basis(b0, cache_root=None)
+    first = M.mannequin_shape_basis(b0, cache_root=tmp_path)
     files = list((tmp_path / "body").glob("mannequin-*.npz"))
     assert len(files) == 1
-    again = M._mannequin_shape_basis(b0, cache_root=tmp_path)  # read back from the file
+    again = M.mannequin_shape_basis(b0, cache_root=tmp_path)  # read back from the file
     for a, b, c in zip(fresh, first, again, strict=True):
         np.testing.assert_array_equal(a, b)
         np.testing.assert_array_equal(a, c)
     files[0].write_bytes(b"damaged")  # a damaged file is rebuilt
-    np.testing.assert_array_equal(M._mannequin_shape_basis(b0, cache_root=tmp_path)[1], fresh[1])
+    np.testing.assert_array_equal(M.mannequin_shape_basis(b0, cache_root=tmp_path)[1], fresh[1])
     assert np.load(files[0])["v0"].shape == fresh[0].shape

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from jaxmotion.eval.runner import ModelSpec, _ci, evaluate, format_markdown, parse_model
+from jaxmotion.eval.runner import ModelSpec, mean_ci95, evaluate, format_markdown, parse_model
 
 
 def test_parse_model():
@@ -65,8 +65,8 @@ def test_cases_carry_the_target_class_mask(tiny_runs):
     """The class mask (the paper's grounding target) holds every point of the target's semantic
     class: a superset of the instance mask, and exactly the class's points of the crop."""
     from jaxmotion.data.format import load_sample
-    from jaxmotion.sample import load_cases
-    from jaxmotion.train.export import read_config
+    from jaxmotion.data.cases import load_cases
+    from jaxmotion.models.weights import read_config
 
     root, out = tiny_runs
     cases, _ = load_cases(out["data"], "test", read_config(root / "amdm"), num_cases=3)
@@ -87,10 +87,10 @@ def test_cases_carry_the_target_class_mask(tiny_runs):
 
 def test_interval_is_the_normal_95_percent_half_width():
     v = [1.0, 2.0, 3.0, 4.0]
-    s = _ci(v)
+    s = mean_ci95(v)
     assert s["mean"] == 2.5 and s["n"] == 4
     assert s["ci95"] == pytest.approx(1.96 * np.std(v, ddof=1) / 2.0)
-    assert _ci([np.nan])["mean"] is None and _ci([5.0])["ci95"] == 0.0
+    assert mean_ci95([np.nan])["mean"] is None and mean_ci95([5.0])["ci95"] == 0.0
 
 
 @pytest.mark.parametrize("body", [False, True])

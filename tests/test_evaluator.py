@@ -8,8 +8,8 @@ import pytest
 
 from jaxmotion.config import load_config
 from jaxmotion.data.synth import SynthSettings, build_dataset
-from jaxmotion.eval.evaluator import (EVALUATOR_VERSION, MotionTextDataset, load_evaluator,
-                                      manifest_sha256, text_motion_scores)
+from jaxmotion.eval.evaluator import EVALUATOR_VERSION, load_evaluator, manifest_sha256, text_motion_scores
+from jaxmotion.train.evaluator_task import MotionTextDataset
 from jaxmotion.train import load_trained, train
 from jaxmotion.train.tasks import get_task
 
@@ -111,7 +111,7 @@ def test_saved_and_loaded_features_agree(run):
 
 
 def test_clear_errors(run, tmp_path):
-    from jaxmotion.train.export import load_weights, save_weights
+    from jaxmotion.models.weights import load_weights, save_weights
 
     cfg, result, ev, b = run
     joints, mask = b["joints"][:2], b["mask"][:2]

@@ -373,11 +373,11 @@ def test_video_camera_is_mplot3ds(size):
     from matplotlib.figure import Figure
     from mpl_toolkits.mplot3d import proj3d
 
-    from jaxmotion.export.video import _SS, _Camera
+    from jaxmotion.export.video import SUPERSAMPLE, Camera
 
     width, height = size
     joints = _motion_joints(14, 2, 4) + [1.0, -2.0, 0.0]
-    cam = _Camera(joints, width, height)
+    cam = Camera(joints, width, height)
     fig = Figure(figsize=(width / 100, height / 100), dpi=100)
     FigureCanvasAgg(fig)
     side = max(width, height)
@@ -396,7 +396,7 @@ def test_video_camera_is_mplot3ds(size):
     x, y, _ = proj3d.proj_transform(*pts.T, ax.get_proj())
     px = ax.transData.transform(np.stack([x, y], axis=1))
     np.testing.assert_allclose(
-        cam.project(pts)[0] / _SS, np.stack([px[:, 0], height - px[:, 1]], 1), atol=1e-6
+        cam.project(pts)[0] / SUPERSAMPLE, np.stack([px[:, 0], height - px[:, 1]], 1), atol=1e-6
     )
 
 

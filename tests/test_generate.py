@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import jaxmotion
-from jaxmotion.generation import GenerateError, default_checkpoints
+from jaxmotion.errors import GenerateError
+from jaxmotion.pipelines.checkpoints import default_checkpoints
 
 FAST = dict(steps=2, adm_steps=2, fit_iters=5)
 
@@ -27,7 +28,7 @@ def result(ckpt):
 
 
 def test_shipped_demo_room_is_the_seeded_room():
-    from jaxmotion.generation import build_demo_scene, demo_scene
+    from jaxmotion.scene.demo import build_demo_scene, demo_scene
 
     a, b = demo_scene(), build_demo_scene()
     for k in ("xyz", "rgb", "normal", "semantic", "instance"):
@@ -37,7 +38,8 @@ def test_shipped_demo_room_is_the_seeded_room():
 
 
 def test_target_category_is_the_first_one_the_text_names():
-    from jaxmotion.generation import demo_scene, mentioned_objects
+    from jaxmotion.scene.demo import demo_scene
+    from jaxmotion.grounding import mentioned_objects
 
     room = demo_scene()
     ids = lambda t: [o["id"] for o in mentioned_objects(room, t)]  # noqa: E731
@@ -51,7 +53,8 @@ def test_target_category_is_the_first_one_the_text_names():
 def test_object_table_from_point_labels_and_synonyms():
     import dataclasses
 
-    from jaxmotion.generation import demo_scene, mentioned_objects, object_table
+    from jaxmotion.scene.demo import demo_scene
+    from jaxmotion.grounding import mentioned_objects, object_table
 
     room = demo_scene()
     bare = dataclasses.replace(room, objects=())  # a labelled scan: per-point ids only
@@ -126,7 +129,7 @@ def test_bad_input_is_a_clear_error(ckpt, kwargs, match):
 def test_guidance_per_stage(result, ckpt):
     """One scale sets both stages, a pair sets each; the scales change the motion (the ADM's
     scale also its maps) and are recorded; an AMDM-only scale leaves the ADM maps as they were."""
-    from jaxmotion.generation import DEFAULT_GUIDANCE
+    from jaxmotion.options import DEFAULT_GUIDANCE
 
     assert result.guidance == DEFAULT_GUIDANCE
     kw = dict(samples=2, seed=3, checkpoints=ckpt, **FAST)
@@ -144,7 +147,7 @@ def test_guidance_per_stage(result, ckpt):
 
 def test_consistency_guidance(result, ckpt):
     """The default strength is recorded; 0 turns it off: the same maps, another motion."""
-    from jaxmotion.generation import DEFAULT_CONSISTENCY
+    from jaxmotion.options import DEFAULT_CONSISTENCY
 
     assert result.consistency == DEFAULT_CONSISTENCY > 0
     kw = dict(samples=2, seed=3, checkpoints=ckpt, **FAST)
@@ -218,7 +221,7 @@ def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
     assert line["samples"] == 1 and line["frames"] == 120
     assert (out / "motion.bvh").is_file() and not (out / "motion.gif").exists()
     with np.load(out / "motion.npz") as f:
-        from jaxmotion.generation import DEFAULT_GUIDANCE
+        from jaxmotion.options import DEFAULT_GUIDANCE
 
         np.testing.assert_allclose(f["guidance"], DEFAULT_GUIDANCE)
     assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
@@ -260,19 +263,19 @@ def test_text_naming_no_object_tiles_the_room(ckpt):
 
 
 def test_text_embedding_cache(tmp_path):
-    from jaxmotion.generation import _embed, _text_encoder
+    from jaxmotion.text.condition import embed_one, text_encoder
 
-    fresh = _embed("sit on the sofa", tmp_path)
+    fresh = embed_one("sit on the sofa", tmp_path)
     assert len(list(tmp_path.glob("*.npz"))) == 1
-    np.testing.assert_array_equal(_embed("sit on the sofa", tmp_path), fresh)  # from the file
-    np.testing.assert_allclose(fresh, _text_encoder()(["sit on the sofa"]), atol=1e-6)
+    np.testing.assert_array_equal(embed_one("sit on the sofa", tmp_path), fresh)  # from the file
+    np.testing.assert_allclose(fresh, text_encoder()(["sit on the sofa"]), atol=1e-6)
     next(tmp_path.glob("*.npz")).write_bytes(b"broken")  # a damaged entry is recomputed
     with pytest.warns(UserWarning, match="unreadable embedding shard"):
-        np.testing.assert_array_equal(_embed("sit on the sofa", tmp_path), fresh)
+        np.testing.assert_array_equal(embed_one("sit on the sofa", tmp_path), fresh)
 
 
 def test_exported_programs_are_reused_only_for_the_same_code_and_shapes(tmp_path, monkeypatch):
-    import jaxmotion.generation as G
+    import jaxmotion.compiled as C
 
     calls = []
 
@@ -281,19 +284,19 @@ def test_exported_programs_are_reused_only_for_the_same_code_and_shapes(tmp_path
         return lambda x: x * 2.0
 
     x = np.arange(3, dtype=np.float32)
-    np.testing.assert_array_equal(G._aot_call(tmp_path, "f", "v1", build, (x,)), 2 * x)
-    np.testing.assert_array_equal(G._aot_call(tmp_path, "f", "v1", build, (x,)), 2 * x)
+    np.testing.assert_array_equal(C.cached_call(tmp_path, "f", "v1", build, (x,)), 2 * x)
+    np.testing.assert_array_equal(C.cached_call(tmp_path, "f", "v1", build, (x,)), 2 * x)
     assert len(calls) == 1 and len(list(tmp_path.glob("f-*.jaxexport"))) == 1
-    G._aot_call(tmp_path, "f", "v1", build, (np.arange(4, dtype=np.float32),))  # new shape
-    monkeypatch.setattr(G, "_code_digest", lambda: "edited sources")
-    G._aot_call(tmp_path, "f", "v1", build, (x,))  # the code changed: traced again
+    C.cached_call(tmp_path, "f", "v1", build, (np.arange(4, dtype=np.float32),))  # new shape
+    monkeypatch.setattr(C, "code_digest", lambda: "edited sources")
+    C.cached_call(tmp_path, "f", "v1", build, (x,))  # the code changed: traced again
     assert len(calls) == 3 and len(list(tmp_path.glob("f-*.jaxexport"))) == 3
 
 
 def test_known_target_keeps_the_map_off_its_class_mates(tiny_runs, ckpt):
     """With object_id (or grounding=auto) the other objects of the target's class are left
     out of the ADM's map; with grounding=adm and no object_id nothing is left out."""
-    from jaxmotion.generation import object_table, same_class_others
+    from jaxmotion.grounding import object_table, same_class_others
     from jaxmotion.scene import load_scene
 
     _, out = tiny_runs
@@ -337,24 +340,24 @@ def test_text_only_adm_when_no_target_is_known(ckpt, tmp_path, monkeypatch):
     import shutil
     from pathlib import Path
 
-    import jaxmotion.generation as G
+    import jaxmotion.pipelines.checkpoints as G
 
     folder = tmp_path / "ckpt"
     folder.mkdir()
     shutil.copy(Path(ckpt[0]) / "model.safetensors", folder / "adm.safetensors")
     shutil.copy(Path(ckpt[1]) / "model.safetensors", folder / "amdm.safetensors")
-    assert G._text_adm(folder / "adm.safetensors") == folder / "adm.safetensors"  # none there
+    assert G.text_adm_for(folder / "adm.safetensors") == folder / "adm.safetensors"  # none there
     shutil.copy(Path(ckpt[0]) / "model.safetensors", folder / G.TEXT_ADM)
-    assert G._text_adm(folder / "adm.safetensors") == folder / G.TEXT_ADM
-    assert G._text_adm(Path(ckpt[0]) / "model.safetensors").name == "model.safetensors"
+    assert G.text_adm_for(folder / "adm.safetensors") == folder / G.TEXT_ADM
+    assert G.text_adm_for(Path(ckpt[0]) / "model.safetensors").name == "model.safetensors"
     used = []
-    real = G._pipeline
+    real = G.load_pipeline
 
     def spy(adm, amdm):
         used.append(Path(adm).name)
         return real(adm, amdm)
 
-    monkeypatch.setattr(G, "_pipeline", spy)
+    monkeypatch.setattr(G, "load_pipeline", spy)
     r = jaxmotion.generate("demo", "dance around for a while", checkpoints=folder, fit=False,
                            aot=False, **FAST)
     assert r.target_id is None and used and set(used) == {G.TEXT_ADM}

@@ -7,11 +7,13 @@ import jax
 import numpy as np
 import pytest
 
-from jaxmotion.eval.runner import ModelSpec, _load_cases, _score_cases, evaluate, format_markdown
+import jaxmotion.scene.demo
+from jaxmotion.eval.runner import (ModelSpec, evaluate, format_markdown, load_eval_cases,
+                                   score_cases)
 
 
 def _pipe(root):
-    from jaxmotion.sample import AffordancePipeline
+    from jaxmotion.pipelines.affordance import AffordancePipeline
 
     return AffordancePipeline.from_workdirs(root / "adm", root / "amdm")
 
@@ -36,7 +38,7 @@ def test_crop_sample_at_a_given_centre():
 
 
 def test_same_class_others():
-    from jaxmotion.generation import same_class_others
+    from jaxmotion.grounding import same_class_others
 
     objects = [{"id": 1, "category": "chair"}, {"id": 2, "category": "chair"},
                {"id": 3, "category": "table"}, {"id": 4, "category": "chair"}]
@@ -47,7 +49,7 @@ def test_same_class_others():
 
 def _two_cases(tiny_runs):
     """The pipeline, two test cases and their stacked points, colours and text."""
-    from jaxmotion.sample import case_inputs, load_cases
+    from jaxmotion.data.cases import case_inputs, load_cases
 
     root, out = tiny_runs
     pipe = _pipe(root)
@@ -57,7 +59,7 @@ def _two_cases(tiny_runs):
 
 
 def test_exclude_keeps_the_map_off_those_points(tiny_runs):
-    from jaxmotion.sample import SamplerSpec
+    from jaxmotion.diffusion import SamplerSpec
 
     pipe, cases, x, emb = _two_cases(tiny_runs)
     pts, col = x["points"], x["colors"]
@@ -82,16 +84,17 @@ def test_exclude_keeps_the_map_off_those_points(tiny_runs):
 def test_generate_protocol_cases(tiny_runs):
     """Crops centred where generate would put them, goal points from the whole room, and
     the exclusion mask on the other objects of the chosen object's class."""
-    import jaxmotion.generation as G
+    from jaxmotion.grounding import find_object, object_table, same_class_others
+    from jaxmotion.grounding.region import centre_on_object
     from jaxmotion.data.format import load_sample
     from jaxmotion.eval.region_probe import case_regions
-    from jaxmotion.sample import SamplerSpec
+    from jaxmotion.diffusion import SamplerSpec
     from jaxmotion.scene import load_scene
 
     root, out = tiny_runs
     pipe = _pipe(root)
     regions = case_regions(out["data"], "test", pipe, num_cases=6, sampler=SamplerSpec("ddim", 2))
-    cases = _load_cases(out["data"], "test", pipe.amdm_config, 6, 0, regions, exclude=True)
+    cases = load_eval_cases(out["data"], "test", pipe.amdm_config, 6, 0, regions, exclude=True)
     assert len(cases) == len(regions) >= 2  # the tiny test split has 4 cases
     for c, r in zip(cases, regions, strict=True):
         s = load_sample(out["data"] / "samples" / "test" / c["file"])
@@ -99,18 +102,18 @@ def test_generate_protocol_cases(tiny_runs):
         assert r["target"] == int(s["target_id"]) and r["chosen"] == r["target"]
         np.testing.assert_allclose(c["shift"][:2], r["centre"], atol=1e-5)
         lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
-        obj = G._object(room, r["chosen"])
-        np.testing.assert_allclose(r["centre"], G._object_centre(obj, lo, hi, 4.0))
+        obj = find_object(room, r["chosen"])
+        np.testing.assert_allclose(r["centre"], centre_on_object(obj, lo, hi, 4.0))
         # goal points: the target's points of the room, in the crop frame
         world = c["goal_points"] @ c["rotation"] + c["shift"]
         on = room.xyz[room.instance == r["target"]]
         d = np.sqrt(((world[:, None] - on[None]) ** 2).sum(-1)).min(1)
         assert d.max() < 1e-4 and len(world) == len(c["points"])
-        others = G.same_class_others(G.object_table(room), r["chosen"])
+        others = same_class_others(object_table(room), r["chosen"])
         np.testing.assert_array_equal(c["exclude"], np.isin(c["instance"], others))
         assert not (c["exclude"] & c["target_mask"]).any()
     with pytest.raises(ValueError, match="crop centres for"):
-        from jaxmotion.sample import load_cases
+        from jaxmotion.data.cases import load_cases
 
         load_cases(out["data"], "test", pipe.amdm_config, num_cases=3, centres=[(0, 0)])
 
@@ -119,7 +122,7 @@ def test_a_target_outside_the_crop_scores_its_true_distance():
     """Generate protocol: a region without the target gives the goal distance to the
     target's points elsewhere in the room (not a missing value) and instance success 0."""
     from jaxmotion.eval.joint_spheres import joints_goal_distance
-    from jaxmotion.eval.runner import _physical_fn
+    from jaxmotion.eval.runner import physical_fn
 
     rng = np.random.default_rng(1)
     n, t = 256, 8
@@ -132,14 +135,14 @@ def test_a_target_outside_the_crop_scores_its_true_distance():
     case = dict(points=points, goal_points=goal, target_mask=np.zeros(n, bool),
                 target_class_mask=cls, mask=np.ones(t, bool), action="sit")
     affs = [[np.full((n, 6), 0.5, np.float32)]]
-    rows = _score_cases([case], joints[None], affs, _physical_fn(False, 30.0), False, 30.0,
+    rows = score_cases([case], joints[None], affs, physical_fn(False, 30.0), False, 30.0,
                         [], None)
     want = float(joints_goal_distance(goal, joints[0, -1]))
     assert want > 2.0 and rows[0]["goal_distance"] == pytest.approx(want, rel=1e-5)
     assert rows[0]["instance_success@0.3"] == 0.0 and "success@0.3" in rows[0]
     # no object of the class in the crop either: still a miss, no class columns
-    rows = _score_cases([{**case, "target_class_mask": np.zeros(n, bool)}], joints[None], affs,
-                        _physical_fn(False, 30.0), False, 30.0, [], None)
+    rows = score_cases([{**case, "target_class_mask": np.zeros(n, bool)}], joints[None], affs,
+                        physical_fn(False, 30.0), False, 30.0, [], None)
     assert rows[0]["instance_success@0.3"] == 0.0 and "success@0.3" not in rows[0]
 
 
@@ -178,7 +181,8 @@ def test_runner_generate_protocol(tiny_runs, tmp_path):
 
 
 def test_best_of_keeps_the_map_that_lights_the_target(tiny_runs):
-    from jaxmotion.sample import SamplerSpec, adm_map_one
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.pipelines.affordance import adm_map_one
 
     pipe, cases, x, emb = _two_cases(tiny_runs)
     pts, col = x["points"], x["colors"]
@@ -210,7 +214,7 @@ def test_best_of_keeps_the_map_that_lights_the_target(tiny_runs):
 
 def test_best_motion_keeps_the_motion_that_reaches_the_target(tiny_runs):
     from jaxmotion.scene.instructions import anchor_is_first
-    from jaxmotion.sample import SamplerSpec
+    from jaxmotion.diffusion import SamplerSpec
 
     pipe, cases, x, emb = _two_cases(tiny_runs)
     pts, col, mask = x["points"], x["colors"], x["mask"].copy()
@@ -267,7 +271,7 @@ def _demo_chair(root):
     """The demo room, its chair and fast `generate` settings with the tiny checkpoints."""
     import jaxmotion
 
-    scene = jaxmotion.generation.demo_scene()
+    scene = jaxmotion.scene.demo.demo_scene()
     chair = next(o for o in scene.objects if o["category"] == "chair")
     fast = dict(checkpoints=(str(root / "adm"), str(root / "amdm")), fit=False, steps=2,
                 adm_steps=2, seed=1)
@@ -277,7 +281,7 @@ def _demo_chair(root):
 def test_adm_candidates_in_eval_and_generate(tiny_runs):
     import jaxmotion
     from jaxmotion.eval.runner import parse_model
-    from jaxmotion.generation import GenerateError
+    from jaxmotion.errors import GenerateError
 
     root, _ = tiny_runs
     m = parse_model("c=x,y,ddim4,adm_candidates=3")
@@ -307,7 +311,7 @@ def test_adm_candidates_in_eval_and_generate(tiny_runs):
 def test_motion_candidates_in_eval_and_generate(tiny_runs):
     import jaxmotion
     from jaxmotion.eval.runner import parse_model
-    from jaxmotion.generation import GenerateError
+    from jaxmotion.errors import GenerateError
 
     root, _ = tiny_runs
     m = parse_model("c=x,y,ddim4,adm_candidates=3,motion_candidates=2")

@@ -46,7 +46,7 @@ def test_adm_selection_by_grounding(runs, tmp_path):
     """grounding_every: the run logs the grounding of the EMA ADM's maps on fixed val crops and
     exports the best weights to model_best.safetensors (best.json), which load like any ADM and
     survive a resume; loader_workers prepares the batches in processes."""
-    from jaxmotion.train.tasks import load_adm
+    from jaxmotion.models.frozen import load_adm
 
     root, out = runs
     args = [f"data_dir={out['data']}", "preset=tiny", "steps=20", f"workdir={tmp_path / 'adm'}",
@@ -81,7 +81,8 @@ def test_adm_selection_by_grounding(runs, tmp_path):
 
 
 def test_sampling_shapes_and_world_frame(runs, tmp_path):
-    from jaxmotion.sample import SamplerSpec, sample_split
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.sample import sample_split
 
     root, out = runs
     path = sample_split(out["data"], "test", root / "adm", root / "amdm", tmp_path / "s.npz",
@@ -108,7 +109,9 @@ def test_given_maps_replace_the_adm_with_the_same_motion_noise(runs):
     noise it would have had: fed the ADM's own maps back, it gives the very same motion."""
     import jax
 
-    from jaxmotion.sample import AffordancePipeline, SamplerSpec, load_cases
+    from jaxmotion.pipelines.affordance import AffordancePipeline
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.data.cases import load_cases
 
     root, out = runs
     pipe = AffordancePipeline.from_workdirs(root / "adm", root / "amdm")
@@ -138,8 +141,10 @@ def test_consistency_guidance_in_the_pipeline(runs, monkeypatch):
     import jax
 
     import jaxmotion.diffusion.affordance_guidance as ag
-    from jaxmotion.data.loader import _batched_affordance
-    from jaxmotion.sample import AffordancePipeline, SamplerSpec, load_cases
+    from jaxmotion.data.loader import batched_affordance
+    from jaxmotion.pipelines.affordance import AffordancePipeline
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.data.cases import load_cases
 
     root, out = runs
     pipe = AffordancePipeline.from_workdirs(root / "adm", root / "amdm")
@@ -147,7 +152,7 @@ def test_consistency_guidance_in_the_pipeline(runs, monkeypatch):
     pts, mask, gt = (np.stack([c[k] for c in cases]) for k in ("points", "mask", "gt"))
     mask[1, 50:] = False
     emb = np.random.default_rng(0).normal(size=(2, 384)).astype(np.float32)
-    maps = np.asarray(_batched_affordance(pipe.sigma)(pts, gt, mask))
+    maps = np.asarray(batched_affordance(pipe.sigma)(pts, gt, mask))
     key = jax.random.key(3)
     seen, make = [], ag.make_x0_refiner
 

@@ -112,7 +112,7 @@ def test_init_from_starts_from_the_other_runs_weights(room_runs):
     from flax import nnx
 
     from jaxmotion.config import load_config
-    from jaxmotion.train.export import flatten_state, load_weights
+    from jaxmotion.models.weights import flatten_state, load_weights
     from jaxmotion.train.tasks import get_task
 
     root, data, work, cfg, res = room_runs
@@ -150,8 +150,10 @@ def test_amdm_refuses_a_room_view_adm_for_its_predicted_maps(room_runs, tmp_path
 
 
 def test_room_view_cases_and_sampling(room_runs, tmp_path):
-    from jaxmotion.sample import (AffordancePipeline, SamplerSpec, case_inputs, load_cases,
-                                  sample_split, take_text)
+    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.data.cases import case_inputs, load_cases
+    from jaxmotion.sample import sample_split
 
     root, data, work, _, _ = room_runs
     pipe = AffordancePipeline.from_workdirs(work, root / "amdm")
@@ -206,7 +208,8 @@ def test_room_view_eval_and_probe(room_runs):
     # the probe picks its cases on the ADM's view: several objects of the target's class there,
     # and a closest / farthest relation
     from jaxmotion.eval.relation_probe import canonical_pair
-    from jaxmotion.sample import AffordancePipeline, load_cases
+    from jaxmotion.pipelines.affordance import AffordancePipeline
+    from jaxmotion.data.cases import load_cases
 
     pipe = AffordancePipeline.from_workdirs(work, root / "amdm")
     want = 0
@@ -257,7 +260,7 @@ def _box(i, cat, x, y, w=0.5):
 def test_candidate_objects_narrows_by_the_relation():
     from types import SimpleNamespace
 
-    from jaxmotion.generation import candidate_objects
+    from jaxmotion.grounding import candidate_objects
 
     room = SimpleNamespace(objects=[_box(1, "chair", 0.5, 0.5), _box(2, "chair", 4.0, 3.0),
                                     _box(3, "door", 0.0, 1.5), _box(4, "table", 2.0, 2.0)])

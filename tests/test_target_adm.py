@@ -52,7 +52,7 @@ def target_run(fine_tune_adm):
 
 
 def test_init_from_an_adm_without_the_target_starts_as_that_adm(target_run):
-    from jaxmotion.train.export import load_weights
+    from jaxmotion.models.weights import load_weights
     from jaxmotion.train.tasks import get_task
 
     root, data, work, cfg, res = target_run
@@ -66,7 +66,7 @@ def test_init_from_an_adm_without_the_target_starts_as_that_adm(target_run):
     np.testing.assert_array_equal(np.delete(kernel, at, axis=0), old)
     # so the grown ADM is the old one, whatever the target says
     from jaxmotion.config import config_from_dict
-    from jaxmotion.train.export import apply_weights
+    from jaxmotion.models.weights import apply_weights
 
     base = make_adm(config_from_dict(ADMConfig, saved["model"]), rngs=nnx.Rngs(0))
     apply_weights(base, src, prefix="adm/")
@@ -97,7 +97,9 @@ def test_target_drop_is_validated():
 
 
 def test_pipeline_tells_a_target_reading_adm_the_target(target_run):
-    from jaxmotion.sample import AffordancePipeline, SamplerSpec, case_inputs, load_cases, take_text
+    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.data.cases import case_inputs, load_cases
 
     root, data, work, _, _ = target_run
     pipe = AffordancePipeline.from_workdirs(work, root / "amdm")

@@ -254,11 +254,11 @@ def test_dataset_cache_dir_falls_back_to_workdir_when_read_only(tmp_path, monkey
     assert got == work / "text_token_cache"
 
     from jaxmotion.config import load_config
-    from jaxmotion.eval.evaluator import EvaluatorTask
-    from jaxmotion.train.tasks import _DataTask
+    from jaxmotion.train.evaluator_task import EvaluatorTask
+    from jaxmotion.train.tasks import DataTask
 
     cfg = load_config("configs/adm.py", [f"data_dir={data}", f"workdir={work}"])
-    assert _DataTask._cache_dir(cfg, "text", "text_cache") == work / "text_cache"
+    assert DataTask._cache_dir(cfg, "text", "text_cache") == work / "text_cache"
     ecfg = load_config("configs/evaluator.py", [f"data_dir={data}", f"workdir={work}"])
     out = EvaluatorTask()._prepare(ecfg, {"joints": np.zeros((1, 4, 22, 3), np.float32),
                                           "mask": np.ones((1, 4), bool), "text": ["a person sits"]})

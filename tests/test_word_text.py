@@ -187,7 +187,9 @@ def word_runs(tiny_runs, tmp_path_factory):
 
 
 def test_word_level_training_and_sampling(word_runs, tmp_path):
-    from jaxmotion.sample import AffordancePipeline, SamplerSpec, sample_split, take_text
+    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.sample import sample_split
 
     root, data, runs = word_runs
     assert runs["adm"].step == 10 and np.isfinite(runs["adm"].last_loss)
@@ -228,7 +230,7 @@ def test_word_level_eval(word_runs):
 
 def test_word_level_generate_caches_the_words(word_runs, tmp_path, monkeypatch):
     import jaxmotion
-    import jaxmotion.generation as G
+    import jaxmotion.text.condition as G
 
     root, _, _ = word_runs
     monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "xla"))
@@ -238,8 +240,8 @@ def test_word_level_generate_caches_the_words(word_runs, tmp_path, monkeypatch):
     assert first.joints.shape[0] == 2 and np.isfinite(first.joints).all()
     assert list((tmp_path / "xla").glob("text-embeddings-tokens/tok-*.npz"))
     # a repeated command reads the words from the cache: the encoder is never called
-    monkeypatch.setattr(G, "_text_encoder", lambda: pytest.fail("encoder loaded"))
+    monkeypatch.setattr(G, "text_encoder", lambda: pytest.fail("encoder loaded"))
     again = jaxmotion.generate("demo", "sit on the chair next to the table", **kw)
     np.testing.assert_array_equal(again.joints, first.joints)
-    emb = G._embed("sit on the chair next to the table", tmp_path / "xla" / "text-embeddings", 4)
+    emb = G.embed_one("sit on the chair next to the table", tmp_path / "xla" / "text-embeddings", 4)
     assert emb["tokens"].shape == (1, 4, 384) and emb["mask"].all()

@@ -219,7 +219,7 @@ def _mannequin_bind_vertices(m, betas: np.ndarray) -> np.ndarray:
     return np.asarray(m.vertices(m.rest_pose()), np.float64)
 
 
-def _mannequin_shape_basis(b0: np.ndarray, cache_root=None) -> tuple[np.ndarray, np.ndarray]:
+def mannequin_shape_basis(b0: np.ndarray, cache_root=None) -> tuple[np.ndarray, np.ndarray]:
     """Bind vertices ``[V,3]`` at shape ``b0`` and their central-difference shape directions
     ``[V,3,10]`` (21 calls into mannequin-x, about 0.7 s on CPU). When JAX's persistent
     compilation cache is on (the command line and ``jaxmotion.generate`` turn it on), the result
@@ -272,7 +272,7 @@ def _load_mannequin_cached(anchor: tuple[float, ...]) -> BodyModel:
     parents = tuple(int(p) for p in wooden["parents"])
     _check_tree(parents)
     b0 = np.asarray(anchor, np.float64)
-    v0, dirs = _mannequin_shape_basis(b0)
+    v0, dirs = mannequin_shape_basis(b0)
     num_joints = len(parents)
     fixed = np.zeros((num_joints, 3))
     # Joints 22, 23 (hand roots) are unposed; the 30 finger joints hold the hand mean.

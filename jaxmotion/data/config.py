@@ -13,7 +13,7 @@ import dataclasses
 import math
 from typing import Literal
 
-JOINT_COUNT = 22  # SMPL-X body joints; affordance joint ids index into them
+from jaxmotion.constants import NUM_JOINTS as JOINT_COUNT  # affordance joint ids index into them
 
 
 @dataclasses.dataclass(frozen=True)

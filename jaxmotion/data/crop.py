@@ -29,7 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Crop", "CropSpec", "crop_at", "crop_sample", "model_colors", "motion_features", "features_to_joints"]
+__all__ = ["Crop", "CropSpec", "crop_at", "crop_sample", "crop_spec_from_config", "features_to_joints",
+           "model_colors", "motion_features"]
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,18 @@ class CropSpec:
     def __post_init__(self):
         if self.centre not in ("motion", "room"):
             raise ValueError(f"CropSpec.centre must be 'motion' or 'room', got {self.centre!r}")
+
+
+def crop_spec_from_config(run_config: dict, *, rotate: bool = False, **overrides) -> CropSpec:
+    """The :class:`CropSpec` a trained model's crops follow, from its stored run config (the
+    ``config.json`` in its weights file, whose ``crop`` section is a
+    :class:`~jaxmotion.data.config.CropConfig`); no rotation unless ``rotate`` (inference and
+    evaluation crops are not augmented). ``overrides`` replace fields (e.g. ``num_points``)."""
+    from jaxmotion.config import config_from_dict
+    from jaxmotion.data.config import CropConfig
+
+    cfg = config_from_dict(CropConfig, run_config["crop"])
+    return CropSpec(**{**cfg.__dict__, "rotate": bool(rotate), **overrides})
 
 
 @dataclass(frozen=True)

@@ -72,7 +72,7 @@ class _SceneCache:
 
 
 @functools.lru_cache(maxsize=None)
-def _batched_affordance(sigma: float):
+def batched_affordance(sigma: float):
     import jax
 
     from jaxmotion.geometry import AFFORDANCE_JOINTS, affordance_map
@@ -139,7 +139,7 @@ class Dataset:
     def add_affordance(self, out: dict) -> dict:
         """Add the ground-truth affordance map of a :meth:`host_batch` (computed in JAX)."""
         out["affordance"] = np.asarray(
-            _batched_affordance(self.sigma)(out["points"], out["joints"], out["mask"])
+            batched_affordance(self.sigma)(out["points"], out["joints"], out["mask"])
         )
         return out
 

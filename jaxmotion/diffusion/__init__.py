@@ -28,6 +28,7 @@ from jaxmotion.diffusion.samplers import (
     ddim_timesteps,
     ddpm_posterior,
     ddpm_sample,
+    SamplerSpec,
     guided_denoise,
     sample,
 )
@@ -45,6 +46,7 @@ from jaxmotion.diffusion.schedules import (
 
 __all__ = [
     "SCHEDULES",
+    "SamplerSpec",
     "Schedule",
     "cosine_betas",
     "ddim_posterior",

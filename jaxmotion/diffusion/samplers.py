@@ -48,6 +48,8 @@ the returned sample carries the known values exactly.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from collections.abc import Callable
 
 import jax
@@ -294,3 +296,30 @@ def sample(key, denoise_fn, schedule, shape=None, cond=None, *, method: str = "d
         n = schedule.num_steps if num_steps is None else num_steps
         return ddim_sample(key, denoise_fn, schedule, shape, cond, num_steps=n, eta=eta, **kwargs)
     raise ValueError(f"method must be 'ddpm' or 'ddim', got {method!r}")
+
+
+@dataclass(frozen=True)
+class SamplerSpec:
+    """How to sample one stage: ``method`` ddpm|ddim, ``steps`` (DDIM only), ``eta``,
+    classifier-free ``guidance``, and ``consistency``: the strength in [0, 1] of
+    affordance-consistency guidance (AMDM stage only; 0 = off; see
+    :mod:`jaxmotion.diffusion.affordance_guidance`)."""
+
+    method: str = "ddim"
+    steps: int = 50
+    eta: float = 0.0
+    guidance: float = 1.0
+    consistency: float = 0.0
+
+    def __post_init__(self):
+        if not 0.0 <= float(self.consistency) <= 1.0:
+            raise ValueError(f"consistency must be in [0, 1] (0 = off), got {self.consistency}")
+
+    def run(self, key, denoise, schedule, shape, cond, null_cond, refine_fn=None):
+        kw = dict(cond=cond, guidance_scale=self.guidance, null_cond=null_cond,
+                  refine_fn=refine_fn)
+        if self.method == "ddpm":
+            return ddpm_sample(key, denoise, schedule, shape, **kw)
+        if self.method == "ddim":
+            return ddim_sample(key, denoise, schedule, shape, num_steps=self.steps, eta=self.eta, **kw)
+        raise ValueError(f"unknown sampler {self.method!r}; valid: ddpm, ddim")

@@ -210,7 +210,7 @@ def _anchor(mask, first):
 
 
 @jax.jit
-def _min_penetration_gap(s, target_mask):
+def min_penetration_gap(s, target_mask):
     """``min_o max(0, −s(o))`` over the (masked) target points; NaN if none."""
     gap = jnp.maximum(-s, 0.0)
     if target_mask is None:
@@ -219,7 +219,7 @@ def _min_penetration_gap(s, target_mask):
     return jnp.where(jnp.any(target_mask), best, jnp.nan)
 
 
-def _check_target(target_points, target_mask):
+def check_target(target_points, target_mask):
     target_points = jnp.asarray(target_points, jnp.float32)
     if target_points.ndim != 2 or target_points.shape[-1] != 3:
         raise ValueError(f"target_points must be [M, 3], got shape {target_points.shape}")
@@ -240,9 +240,9 @@ def goal_distance(target_points, vertices, normals, *, target_mask=None, **chunk
       vertices, normals: ``[V, 3]`` body at the anchor frame (see :func:`anchor_index`).
       target_mask: ``[M]`` valid target points (padding), or None.
     """
-    target_points, target_mask = _check_target(target_points, target_mask)
+    target_points, target_mask = check_target(target_points, target_mask)
     s = signed_distance_to_body(target_points, vertices, normals, **chunks)
-    return _min_penetration_gap(s, target_mask)
+    return min_penetration_gap(s, target_mask)
 
 
 def anchor_goal_distance(target_points, vertices, normals, mask=None, action: str = "", **kw):

@@ -19,8 +19,8 @@ import jax.numpy as jnp
 from jaxmotion.eval._common import safe_norm
 from jaxmotion.eval.body_metrics import (
     CONTACT_THRESHOLD,
-    _check_target,
-    _min_penetration_gap,
+    check_target,
+    min_penetration_gap,
     anchor_index,
     contact,
     non_collision,
@@ -94,8 +94,8 @@ def joint_sphere_sdf_frames(points, joints, radii=None):
 
 def joints_goal_distance(target_points, joints, radii=None, *, target_mask=None):
     """:func:`goal_distance` with the sphere body of one frame: ``[M,3], [J,3] -> ()``."""
-    target_points, target_mask = _check_target(target_points, target_mask)
-    return _min_penetration_gap(joint_sphere_sdf(target_points, joints, radii), target_mask)
+    target_points, target_mask = check_target(target_points, target_mask)
+    return min_penetration_gap(joint_sphere_sdf(target_points, joints, radii), target_mask)
 
 
 def joints_physical_metrics(

@@ -28,6 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxmotion.options import DEFAULT_GUIDANCE
+
+#: DDIM steps of the probe's ADM (more than generate's :data:`~jaxmotion.options.DEFAULT_ADM_STEPS`:
+#: the probe measures the region choice, not the time it takes).
+PROBE_STEPS = 20
 __all__ = ["case_regions", "region_probe"]
 
 
@@ -36,49 +41,50 @@ def case_regions(data_dir, split: str, pipe, *, num_cases: int | None = None,
                  progress: bool = False) -> list[dict]:
     """Where ``jaxmotion generate`` would centre its crop for each of the first ``num_cases``
     cases of a split, given only the room and the instruction (the very code ``generate``
-    runs: :func:`jaxmotion.generation._find_region` with the pipeline's ADM).
+    runs: :func:`jaxmotion.grounding.find_region` with the pipeline's ADM).
 
     Returns per case ``centre`` (xy, world), ``chosen`` (object id or None), ``how``
-    (:attr:`jaxmotion.generation.Generation.grounding`), ``target`` (the dataset's target id),
+    (:attr:`jaxmotion.result.Generation.grounding`), ``target`` (the dataset's target id),
     ``named`` (how many objects of the named class the room has) and ``has_target`` (the
     target is among them)."""
     import jax
     from tqdm.auto import tqdm
 
-    import jaxmotion.generation as G
-    from jaxmotion.config import config_from_dict
-    from jaxmotion.data.config import CropConfig
-    from jaxmotion.data.crop import CropSpec
+    from jaxmotion.constants import TEXT_ENCODER
+    from jaxmotion.data.crop import crop_spec_from_config
     from jaxmotion.data.format import load_sample
-    from jaxmotion.sample import SamplerSpec
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.grounding import AdmChooser, find_region, mentioned_objects
+    from jaxmotion.grounding.region import room_view_maps
+    from jaxmotion.options import GROUNDINGS
     from jaxmotion.scene import load_scene
     from jaxmotion.text import load_text_encoder
 
-    if grounding not in ("auto", "adm"):
+    if grounding not in GROUNDINGS:
         raise ValueError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
     files = sorted((Path(data_dir) / "samples" / split).glob("*.npz"))[:num_cases]
     if not files:
         raise FileNotFoundError(f"{Path(data_dir) / 'samples' / split}: no samples; build a "
                                 "dataset with `jaxmotion synth --out DIR`")
-    spec = CropSpec(**{**config_from_dict(CropConfig, pipe.amdm_config["crop"]).__dict__,
-                       "rotate": False})
-    sampler = sampler if sampler is not None else SamplerSpec("ddim", 20, guidance=5.0)
-    encoder = load_text_encoder("minilm")
+    spec = crop_spec_from_config(pipe.amdm_config)
+    sampler = sampler if sampler is not None else SamplerSpec(
+        "ddim", PROBE_STEPS, guidance=DEFAULT_GUIDANCE[0])
+    encoder = load_text_encoder(TEXT_ENCODER)
     out = []
     for i, f in enumerate(tqdm(files, desc="regions", disable=not progress)):
         s = load_sample(f)
         room = load_scene(Path(data_dir) / "scenes" / f"{s['scene_id']}.npz")
         text, target = str(s["text"]), int(s["target_id"])
-        named = G.mentioned_objects(room, text)
+        named = mentioned_objects(room, text)
         emb = pipe.embed_text([text], encoder)
         key = jax.random.fold_in(jax.random.key(seed), i)
         view = None
         if pipe.room_view:
-            view = G._room_view_maps(room, pipe.adm_config, jax.tree.map(lambda a: a[0], emb),
-                                     key, sampler, 1, seed + i, None, "", lambda: pipe)
-        centre, chosen, how = G._find_region(
+            view = room_view_maps(room, pipe.adm_config, jax.tree.map(lambda a: a[0], emb),
+                                  key, sampler, 1, seed + i, None, "", lambda: pipe)
+        centre, chosen, how = find_region(
             room, text, grounding, spec, view=view,
-            adm=(lambda: pipe, emb, lambda: key, sampler, seed + i))
+            adm=AdmChooser(lambda: pipe, emb, lambda k=key: k, sampler, seed + i))
         out.append({"centre": np.asarray(centre, np.float64), "chosen": chosen, "how": how,
                     "target": target, "named": len(named),
                     "has_target": any(o["id"] == target for o in named)})
@@ -86,15 +92,17 @@ def case_regions(data_dir, split: str, pipe, *, num_cases: int | None = None,
 
 
 def region_probe(data_dir, adm=None, amdm=None, *, split: str = "val", num_cases: int = 200,
-                 grounding: str = "auto", steps: int = 20, guidance: float = 5.0,
-                 seed: int = 0, progress: bool = False) -> dict:
+                 grounding: str = "auto", steps: int = PROBE_STEPS,
+                 guidance: float = DEFAULT_GUIDANCE[0], seed: int = 0,
+                 progress: bool = False) -> dict:
     """Run the probe (module docstring); returns the rates, the counts and the settings."""
-    import jaxmotion.generation as G
-    from jaxmotion.sample import AffordancePipeline, SamplerSpec
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.pipelines.affordance import AffordancePipeline
+    from jaxmotion.pipelines.checkpoints import default_checkpoints
 
     if grounding not in ("auto", "adm"):
         raise ValueError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
-    default_adm, default_amdm = G.default_checkpoints()
+    default_adm, default_amdm = default_checkpoints()
     pipe = AffordancePipeline.from_workdirs(adm or default_adm, amdm or default_amdm)
     regions = case_regions(data_dir, split, pipe, num_cases=num_cases, grounding=grounding,
                            sampler=SamplerSpec("ddim", int(steps), guidance=float(guidance)),
@@ -103,7 +111,7 @@ def region_probe(data_dir, adm=None, amdm=None, *, split: str = "val", num_cases
              (1.0 / r["named"]) if r["has_target"] else 0.0) for r in regions]
     hit, multi, chance = (np.array(c, float) for c in zip(*rows, strict=True))
     multi = multi.astype(bool)
-    rate = lambda x, m: float(x[m].mean()) if m.any() else float("nan")  # noqa: E731
+    rate = lambda x, m: float(x[m].mean()) if m.any() else float("nan")
     return {"cases": len(rows), "multi_cases": int(multi.sum()),
             "hit": float(hit.mean()), "hit_multi": rate(hit, multi),
             "chance": float(chance.mean()), "chance_multi": rate(chance, multi),
@@ -119,8 +127,9 @@ def main(argv=None) -> int:
     ap.add_argument("--split", default="val")
     ap.add_argument("--cases", type=int, default=200, help="first cases of the split (200)")
     ap.add_argument("--grounding", choices=("auto", "adm"), default="auto")
-    ap.add_argument("--steps", type=int, default=20, help="DDIM steps (20)")
-    ap.add_argument("--guidance", type=float, default=5.0, help="ADM guidance scale (5)")
+    ap.add_argument("--steps", type=int, default=PROBE_STEPS, help=f"DDIM steps ({PROBE_STEPS})")
+    ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE[0],
+                    help=f"ADM guidance scale ({DEFAULT_GUIDANCE[0]:g})")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
     r = region_probe(args.data, args.adm, args.amdm, split=args.split, num_cases=args.cases,

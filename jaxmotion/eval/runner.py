@@ -47,6 +47,10 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxmotion.constants import SCENE_FPS, TEXT_ENCODER
+from jaxmotion.errors import GenerateError
+from jaxmotion.options import GROUNDINGS, check_candidates, check_consistency
+
 __all__ = ["ModelSpec", "evaluate", "format_markdown", "parse_model", "write_report"]
 
 PHYSICAL = ("goal_distance", "contact", "non_collision", "apd", "skating")
@@ -89,6 +93,15 @@ class ModelSpec:
         if self.motion_candidates > 1:
             guided.append(f"best of {self.motion_candidates} motions")
         return label + (f" ({', '.join(guided)})" if guided else "")
+
+
+def _checked(text: str, check, *args):
+    """``check(*args)`` (a :mod:`jaxmotion.options` check) with the ``--model`` text named in
+    its error."""
+    try:
+        return check(*args)
+    except GenerateError as e:
+        raise ValueError(f"--model {text!r}: {e}") from None
 
 
 def parse_model(text: str) -> ModelSpec:
@@ -134,22 +147,16 @@ def parse_model(text: str) -> ModelSpec:
                 raise ValueError(f"--model {text!r}: {key} must be an integer ≥ 1, "
                                  f"got {value!r}")
             if key == "adm_candidates":
-                candidates = int(value)
+                candidates = _checked(text, check_candidates, key, int(value))
             elif key == "motion_candidates":
-                motions = int(value)
+                motions = _checked(text, check_candidates, key, int(value))
             elif method != "ddim":
                 raise ValueError(f"--model {text!r}: adm_steps needs a DDIM sampler (ddimN)")
             else:
                 adm_steps = int(value)
             continue
         if key == "consistency":
-            try:
-                consistency = float(value)
-            except ValueError:
-                consistency = float("nan")
-            if not 0.0 <= consistency <= 1.0:
-                raise ValueError(f"--model {text!r}: consistency must be a number in [0, 1] "
-                                 f"(0 = off), got {value!r}")
+            consistency = _checked(text, check_consistency, value)
             continue
         if key == "affordance":
             if value not in ("adm", "gt"):
@@ -174,7 +181,7 @@ def parse_model(text: str) -> ModelSpec:
 
 
 # --------------------------------------------------------------------------- per case
-def _physical_fn(body: bool, fps: float):
+def physical_fn(body: bool, fps: float):
     """Jitted ``(points, goal_points, goal_mask, joints [K,T,22,3], mask, anchor, verts,
     normals) -> metrics [K]`` (+ APD); the goal distance is measured to the masked
     ``goal_points``, the rest to ``points``."""
@@ -218,7 +225,7 @@ def _bodies(joints, mask, fps: float, stride: int = 1):
             float(np.asarray(fit.mean_error).mean()))
 
 
-def _score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: list, bar,
+def score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: list, bar,
                  stride: int = 1):
     """Per-case metric rows for joints ``[C,K,T,22,3]`` (and ADM maps ``affs[c][k]``)."""
     import jax
@@ -261,7 +268,7 @@ def _score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: 
     return rows
 
 
-def _ci(values) -> dict:
+def mean_ci95(values) -> dict:
     v = np.asarray(values, np.float64)
     v = v[np.isfinite(v)]
     if len(v) == 0:
@@ -298,7 +305,9 @@ def evaluate(
     import jax
     from tqdm.auto import tqdm
 
-    from jaxmotion.sample import AffordancePipeline, SamplerSpec, case_inputs, load_cases, take_text
+    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.data.cases import case_inputs, load_cases
     from jaxmotion.scene.instructions import anchor_is_first
     from jaxmotion.text import load_text_encoder
 
@@ -307,15 +316,15 @@ def evaluate(
     if protocol not in ("paper", "generate"):
         raise ValueError(f"protocol must be 'paper' (crops around the dataset's motion) or "
                          f"'generate' (crops where jaxmotion generate puts them), got {protocol!r}")
-    if grounding not in ("auto", "adm"):
+    if grounding not in GROUNDINGS:
         raise ValueError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
     if evaluator is not None and isinstance(evaluator, (str, Path)):
         from jaxmotion.eval.evaluator import load_evaluator
 
         evaluator = load_evaluator(evaluator)
-    encoder = load_text_encoder("minilm")
-    fps = 30.0
-    phys = _physical_fn(body, fps)
+    encoder = load_text_encoder(TEXT_ENCODER)
+    fps = SCENE_FPS
+    phys = physical_fn(body, fps)
     report = {"settings": {"data_dir": str(data_dir), "split": split, "num_cases": num_cases,
                            "samples": samples, "replications": replications, "seed": seed,
                            "body": (f"mannequin (SMPL-X fit, every {vertex_stride}th vertex)"
@@ -340,7 +349,7 @@ def evaluate(
                                    grounding=grounding, sampler=adm_sampler, seed=seed,
                                    progress=progress)
             first_regions = first_regions if first_regions is not None else regions
-        cases = _load_cases(data_dir, split, pipe.amdm_config, num_cases, seed, regions,
+        cases = load_eval_cases(data_dir, split, pipe.amdm_config, num_cases, seed, regions,
                             adm_config=pipe.adm_config,
                             exclude=grounding == "auto" and not pipe.room_view)
         emb = pipe.embed_text([c["text"] for c in cases], encoder)
@@ -360,9 +369,9 @@ def evaluate(
             if not two_stage:
                 raise ValueError(f"--model {spec.name!r}: affordance=gt needs an AMDM that reads "
                                  "affordance maps; this one reads the point colours (one-stage)")
-            from jaxmotion.data.loader import _batched_affordance
+            from jaxmotion.data.loader import batched_affordance
 
-            gt_maps = np.asarray(jax.device_get(_batched_affordance(pipe.sigma)(
+            gt_maps = np.asarray(jax.device_get(batched_affordance(pipe.sigma)(
                 np.stack([c["points"] for c in cases]), np.stack([c["gt"] for c in cases]),
                 np.stack([c["mask"] for c in cases]))))
         reps, fit_errors, case_rows = [], [], []
@@ -389,7 +398,7 @@ def evaluate(
                     if two_stage:
                         affs[ci][k] = res["affordance"][j]
             grounded = two_stage and not oracle  # ground-truth maps are not scored
-            per_case = _score_cases(cases, joints, affs if grounded else None, phys, body, fps,
+            per_case = score_cases(cases, joints, affs if grounded else None, phys, body, fps,
                                     fit_errors, bar, vertex_stride)
             keys = sorted({k for row in per_case for k in row})
             rep = {k: float(np.nanmean([row.get(k, np.nan) for row in per_case])) for k in keys}
@@ -416,7 +425,7 @@ def evaluate(
             "affordance": "ground truth" if oracle else ("adm" if two_stage else None),
             "adm_arch": _adm_arch(spec.adm),
             "replications": reps,
-            "summary": {k: _ci([rep.get(k, np.nan) for rep in reps]) for k in keys},
+            "summary": {k: mean_ci95([rep.get(k, np.nan) for rep in reps]) for k in keys},
             "body_fit_error_m": float(np.mean(fit_errors)) if fit_errors else None,
             "seconds": time.perf_counter() - t_model,
             "cases": case_rows,
@@ -424,31 +433,31 @@ def evaluate(
         if regions is not None:
             report["models"][spec.name]["regions"] = _region_summary(regions)
     if ground_truth:
-        from jaxmotion.train.export import read_config
+        from jaxmotion.models.weights import read_config
 
-        cases = _load_cases(data_dir, split, read_config(models[0].amdm), num_cases, seed,
+        cases = load_eval_cases(data_dir, split, read_config(models[0].amdm), num_cases, seed,
                             first_regions)
         gt = np.stack([c["gt"] for c in cases])[:, None]
-        rows = _score_cases(cases, gt, None, phys, body, fps, [], None, vertex_stride)
+        rows = score_cases(cases, gt, None, phys, body, fps, [], None, vertex_stride)
         report["ground_truth"] = {k: float(np.nanmean([r[k] for r in rows])) for k in rows[0]}
     bar.close()
     return report
 
 
-def _load_cases(data_dir, split, amdm_config, num_cases, seed, regions, adm_config=None,
+def load_eval_cases(data_dir, split, amdm_config, num_cases, seed, regions, adm_config=None,
                 exclude=False):
-    """:func:`jaxmotion.sample.load_cases`; with ``regions`` (the generate protocol) the crops
+    """:func:`jaxmotion.data.cases.load_cases`; with ``regions`` (the generate protocol) the crops
     are centred on them (and each case has ``goal_points``), each case gets ``chosen_mask``
     (the crop's points on the region's object) and, with ``exclude``, the ``exclude`` mask of
     generate (the crop's points on the other objects of that object's class)."""
-    from jaxmotion.sample import load_cases
+    from jaxmotion.data.cases import load_cases
 
     cases, _ = load_cases(data_dir, split, amdm_config, num_cases=num_cases, seed=seed,
                           adm_config=adm_config,
                           centres=None if regions is None else [r["centre"] for r in regions])
     if regions is None:
         return cases
-    from jaxmotion.generation import same_class_others
+    from jaxmotion.grounding import same_class_others
 
     for i, c in enumerate(cases):
         chosen = regions[i]["chosen"]
@@ -485,7 +494,7 @@ def _region_summary(regions) -> dict:
 
 
 def _adm_arch(adm) -> str:
-    from jaxmotion.train.export import read_config
+    from jaxmotion.models.weights import read_config
 
     return str(read_config(adm)["model"].get("arch", "perceiver"))
 

@@ -16,16 +16,20 @@ naming the argument.
 """
 
 from jaxmotion.export.bvh import BVH, read_bvh, write_bvh
+from jaxmotion.export.folder import check_output_folder, summary, write_generation
 from jaxmotion.export.gltf import write_glb
 from jaxmotion.export.video import render_frame, render_motion_video
 from jaxmotion.export.viewer import write_viewer_html
 
 __all__ = [
     "BVH",
+    "check_output_folder",
     "read_bvh",
     "render_frame",
     "render_motion_video",
+    "summary",
     "write_bvh",
+    "write_generation",
     "write_glb",
     "write_viewer_html",
 ]

@@ -59,7 +59,7 @@ __all__ = ["render_frame", "render_motion_video"]
 _MARGIN = 1.0  # metres of scene drawn around the framed cube (xy)
 _LIGHT = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
 _ELEV, _AZIM = 30.0, -60.0  # camera, degrees
-_SS = 2  # pictures are drawn at _SS times their size, then reduced (antialiasing)
+SUPERSAMPLE = 2  # pictures are drawn at SUPERSAMPLE times their size, then reduced (antialiasing)
 # Sizes in output pixels, those of the earlier matplotlib drawing at 100 dpi:
 _DOT = 1.5  # scene dot side (a marker of s=1: 1 pt ≈ 1.4 px)
 _BODY_DOT = 2.0  # body dot side (s=2)
@@ -137,9 +137,9 @@ def render_motion_video(
 
     from PIL import Image, ImageDraw
 
-    cam = _Camera(j, width, height)
+    cam = Camera(j, width, height)
     background = cam.background(xyz, rgb, max_points, seed, text)
-    clock_font = _font(_CLOCK_PX * _SS)
+    clock_font = _font(_CLOCK_PX * SUPERSAMPLE)
     images, boxes = [], []  # frames, and the box (x0, y0, x1, y1) where each differs from
     for f in frames:  # the still scene (output pixels)
         canvas = background.copy()
@@ -162,21 +162,21 @@ def render_motion_video(
         clock = ((0.98 * im.width, 0.98 * im.height), f"{f / fps:5.2f} s")
         draw.text(*clock, fill=(0, 0, 0), font=clock_font, anchor="rd")
         box.append(draw.textbbox(*clock, font=clock_font, anchor="rd"))
-        images.append(np.asarray(im.reduce(_SS)))
+        images.append(np.asarray(im.reduce(SUPERSAMPLE)))
         box = np.array(box, np.float64)
         boxes.append(
             (
-                max(0, math.floor(box[:, 0].min() / _SS) - 1),
-                max(0, math.floor(box[:, 1].min() / _SS) - 1),
-                min(width, math.ceil(box[:, 2].max() / _SS) + 1),
-                min(height, math.ceil(box[:, 3].max() / _SS) + 1),
+                max(0, math.floor(box[:, 0].min() / SUPERSAMPLE) - 1),
+                max(0, math.floor(box[:, 1].min() / SUPERSAMPLE) - 1),
+                min(width, math.ceil(box[:, 2].max() / SUPERSAMPLE) + 1),
+                min(height, math.ceil(box[:, 3].max() / SUPERSAMPLE) + 1),
             )
         )
 
     if suffix == ".gif":
         exact = [(255, 255, 255), (0, 0, 0)]
         exact += [_rgb8(PALETTE[s % len(PALETTE)]) for s in range(min(k, len(PALETTE)))]
-        still = np.asarray(Image.fromarray(background).reduce(_SS))
+        still = np.asarray(Image.fromarray(background).reduce(SUPERSAMPLE))
         data = _gif_bytes(images, boxes, still, out_fps, exact)
     else:
         import imageio.v3 as iio
@@ -246,7 +246,7 @@ def render_frame(
 
     from PIL import Image, ImageDraw
 
-    cam = _Camera(j, width, height)
+    cam = Camera(j, width, height)
     cam.fit(j)
     dot = _DOT * max(1.0, max(width, height) / 640)  # a big picture is seen smaller
     im = Image.fromarray(cam.background(xyz, rgb, max_points, seed, text, dot)).convert("RGBA")
@@ -261,7 +261,7 @@ def render_frame(
     for s in range(k):
         cam.skeleton(draw, j[s, frame], (*_rgb8(PALETTE[s % len(PALETTE)]), 255), 1.3 * _BONE)
     buf = io.BytesIO()
-    im.convert("RGB").reduce(_SS).save(buf, format="PNG")
+    im.convert("RGB").reduce(SUPERSAMPLE).save(buf, format="PNG")
     with atomic_open(path, "wb") as fh:
         fh.write(buf.getvalue())
     return path
@@ -306,8 +306,8 @@ def _font(px: float):
         return ImageFont.load_default()
 
 
-class _Camera:
-    """The fixed camera of a clip, drawing at ``_SS`` times ``width × height``.
+class Camera:
+    """The fixed camera of a clip, drawing at ``SUPERSAMPLE`` times ``width × height``.
 
     Reproduces matplotlib's mplot3d projection of a cubic 3-D axes (limits the
     framed cube, no automatic margin, ``view_init(30, -60)``, perspective,
@@ -320,7 +320,7 @@ class _Camera:
         self.lo, self.hi = flat.min(0), flat.max(0)
         self.centre = 0.5 * (self.lo + self.hi)
         self.half = max(0.5 * float(np.max(self.hi - self.lo)) + 0.3, 1.0)
-        self.width, self.height = width * _SS, height * _SS
+        self.width, self.height = width * SUPERSAMPLE, height * SUPERSAMPLE
         box = 1.8294640721620434 * 25 / 24 / math.sqrt(3)  # mplot3d's side of a cubic box
         span = 2 * self.half  # the cube's side, metres
         e, a = math.radians(_ELEV), math.radians(_AZIM)
@@ -334,7 +334,7 @@ class _Camera:
         origin = self.centre - span / 2
         self._rot = rot
         self._shift = -np.stack([u, v, w]) @ eye - rot @ origin
-        side = max(width, height) * _SS
+        side = max(width, height) * SUPERSAMPLE
         self._scale = side / 0.185  # 2-D view limits [-0.095, 0.09]
         self._x0 = (self.width - side) / 2 + 0.095 * self._scale
         self._y0 = self.height - (self.height - side) / 2 - 0.095 * self._scale
@@ -376,7 +376,7 @@ class _Camera:
             from PIL import Image, ImageDraw
 
             im = Image.fromarray(img)
-            font = _font(_CAPTION_PX * _SS)
+            font = _font(_CAPTION_PX * SUPERSAMPLE)
             lines = _wrap(text, font, 0.96 * self.width)
             ImageDraw.Draw(im).multiline_text(
                 (0.02 * self.width, 0.02 * self.height), "\n".join(lines), fill=(0, 0, 0), font=font
@@ -392,7 +392,7 @@ class _Camera:
         if not len(pts):
             return _EMPTY
         xy, depth = self.project(pts)
-        n = max(1, round(side * _SS))
+        n = max(1, round(side * SUPERSAMPLE))
         ok = depth > 0
         order = np.flatnonzero(ok)[np.argsort(depth[ok], kind="stable")]  # nearest first
         corner = np.floor(xy[order] - n / 2 + 0.5).astype(np.int64)
@@ -416,7 +416,7 @@ class _Camera:
         """
         xy, _ = self.project(joints)
         xy = xy - 0.5  # Pillow's pixel centres are at whole coordinates
-        w = max(1, round(width * _SS))
+        w = max(1, round(width * SUPERSAMPLE))
         for c in range(1, NUM_JOINTS):
             draw.line([tuple(xy[PARENTS[c]]), tuple(xy[c])], fill=fill, width=w)
         r = w / 2

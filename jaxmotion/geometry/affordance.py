@@ -32,6 +32,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmotion.constants import AFFORDANCE_JOINTS, AFFORDANCE_SIGMA
+
 __all__ = [
     "AFFORDANCE_JOINTS",
     "AFFORDANCE_SIGMA",
@@ -41,11 +43,8 @@ __all__ = [
     "distance_to_affordance",
 ]
 
-#: SMPL-X joint indices of the affordance channels: pelvis, l_foot, r_foot, neck,
-#: l_wrist, r_wrist.
-AFFORDANCE_JOINTS: tuple[int, ...] = (0, 10, 11, 12, 20, 21)
-#: Gaussian width σ of the affordance map, metres.
-AFFORDANCE_SIGMA = 0.8
+# SMPL-X joint indices of the affordance channels (pelvis, l_foot, r_foot, neck, l_wrist,
+# r_wrist) and the map's Gaussian width σ in metres: defined in jaxmotion.constants.
 
 _DEFAULT_CHUNK = None  # auto: a [J, chunk] running minimum of ~3 MB (measured best on CPU)
 _CARRY_ELEMENTS = 786_432

@@ -28,6 +28,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmotion.constants import NUM_JOINTS
 from jaxmotion.geometry.rotations import axis_angle_to_matrix, rotate_about_z
 
 __all__ = [
@@ -55,7 +56,6 @@ JOINT_NAMES: tuple[str, ...] = (
 PARENTS: tuple[int, ...] = (
     -1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19,
 )  # fmt: skip
-NUM_JOINTS = 22
 NUM_BETAS = 10
 
 # Index of each joint's left/right counterpart (itself on the midline), used to

@@ -38,7 +38,7 @@ __all__ = ["PointTransformerConfig", "ADMConfig", "AMDMConfig", "PRESET_NAMES", 
 PRESET_NAMES = ("tiny", "cpu", "paper")
 
 
-class _Presets:
+class Presets:
     """Mixin: ``cls.preset(name)`` and ``cls.tiny() / cpu() / paper()``."""
 
     _PRESETS: dict[str, Callable[[], dict[str, Any]]] = {}
@@ -65,7 +65,7 @@ class _Presets:
 
 
 @dataclasses.dataclass(frozen=True)
-class PointTransformerConfig(_Presets):
+class PointTransformerConfig(Presets):
     """Point Transformer backbone (vector attention over k-NN, strided downsampling, U-Net).
 
     Attributes:
@@ -153,7 +153,7 @@ def _pt_cpu_small() -> PointTransformerConfig:
 
 
 @dataclasses.dataclass(frozen=True)
-class ADMConfig(_Presets):
+class ADMConfig(Presets):
     """Affordance Diffusion Model: per-point affordance from scene features, text and time.
 
     Attributes:
@@ -233,7 +233,7 @@ class ADMConfig(_Presets):
 
 
 @dataclasses.dataclass(frozen=True)
-class AMDMConfig(_Presets):
+class AMDMConfig(Presets):
     """Affordance-to-Motion Diffusion Model (and the one-stage baseline).
 
     Attributes:

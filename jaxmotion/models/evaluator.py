@@ -40,7 +40,7 @@ import jax
 import jax.numpy as jnp
 from flax import nnx
 
-from jaxmotion.models.configs import _Presets
+from jaxmotion.models.configs import Presets
 
 __all__ = [
     "EVALUATOR_VERSION", "FEATURE_DIM", "EvaluatorConfig", "FeatureStats", "TextMotionEvaluator",
@@ -57,7 +57,7 @@ _PELVIS, _L_HIP, _R_HIP, _L_SHOULDER, _R_SHOULDER = 0, 1, 2, 16, 17
 
 
 @dataclasses.dataclass(frozen=True)
-class EvaluatorConfig(_Presets):
+class EvaluatorConfig(Presets):
     """Sizes of :class:`TextMotionEvaluator` (``tiny`` / ``cpu`` default / ``paper``).
 
     Attributes:

@@ -233,7 +233,12 @@ def parse_instruction(text: str) -> tuple[str, Reference]:
     rest = s[found[0][1] - 1:]
     relation = None
     if anchors:
-        relation = next(r for r, keys in _KEYWORDS if any(f" {k} " in rest for k in keys))
+        relation = next((r for r, keys in _KEYWORDS if any(f" {k} " in rest for k in keys)),
+                        None)
+    if relation is None:  # no relation word the grammar knows ("beside"): the class alone
+        return action, Reference(target)
+    if len(anchors) != (2 if relation == "between" else 1):  # more or fewer than it takes
+        return action, Reference(target)
     return action, Reference(target, relation, anchors)
 
 

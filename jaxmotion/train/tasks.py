@@ -35,8 +35,9 @@ from jaxmotion.config import config_from_dict, config_to_dict
 from jaxmotion.data.crop import CropSpec
 from jaxmotion.data.format import DatasetError
 from jaxmotion.data.loader import Dataset, Stats, compute_stats, load_stats, save_stats
-from jaxmotion.eval.evaluator import EvaluatorTask
-from jaxmotion.train.export import flatten_state
+from jaxmotion.models.frozen import ADMNet, load_adm, load_backbone
+from jaxmotion.models.weights import flatten_state
+from jaxmotion.train.evaluator_task import EvaluatorTask
 
 __all__ = ["TASKS", "ADMTask", "AMDMTask", "SegmentationTask", "get_task"]
 
@@ -63,7 +64,7 @@ def _stats(cfg) -> Stats:
     return st
 
 
-class _DataTask:
+class DataTask:
     """Shared data plumbing: seeded train iterator, fixed validation batches, text embeddings."""
 
     needs_text = True
@@ -126,7 +127,7 @@ class _DataTask:
 
 
 # --------------------------------------------------------------------------- segmentation
-class SegmentationTask(_DataTask):
+class SegmentationTask(DataTask):
     needs_text = False
 
     def build_model(self, cfg, rngs):
@@ -142,36 +143,7 @@ class SegmentationTask(_DataTask):
         return loss, {"accuracy": acc}
 
 
-def load_backbone(workdir=None, *, tensors=None, model_config=None, prefix="", source=""):
-    """The frozen segmentation backbone, from ``<workdir>/model.safetensors`` or from tensors
-    and a model config (as embedded in an ADM weights file)."""
-    from jaxmotion.models import PointTransformerConfig, PointTransformerSeg
-    from jaxmotion.train.export import abstract_module, apply_weights, load_weights, weights_path
-
-    if workdir is not None:
-        source = f"{workdir}/model.safetensors"
-        tensors, saved = load_weights(weights_path(workdir))
-        model_config = saved["model"]
-    pt_cfg = config_from_dict(PointTransformerConfig, model_config)
-    net = abstract_module(lambda: PointTransformerSeg(pt_cfg, rngs=nnx.Rngs(0)))
-    apply_weights(net, tensors, prefix=prefix, source=source)
-    net.eval()
-    return net
-
-
 # --------------------------------------------------------------------------- ADM
-class ADMNet(nnx.Module):
-    """The frozen backbone + the trainable ADM (parameters under ``adm``)."""
-
-    def __init__(self, backbone, adm):
-        self.backbone = backbone
-        self.adm = adm
-
-    def features(self, xyz, rgb):
-        feats, _ = self.backbone(xyz, rgb, deterministic=True)
-        return jax.lax.stop_gradient(feats)
-
-
 def _text_condition(batch):
     """A batch's text condition: the pooled embedding, or the word-level mapping (see
     :func:`jaxmotion.models.adm_text_cond`) when the batch carries token states."""
@@ -181,7 +153,7 @@ def _text_condition(batch):
     return batch["text_emb"]
 
 
-class ADMTask(_DataTask):
+class ADMTask(DataTask):
     trainable = nnx.All(nnx.Param, nnx.PathContains("adm"))
 
     def text_tokens(self, cfg) -> int:
@@ -222,7 +194,8 @@ class ADMTask(_DataTask):
     def probe_batches(self, cfg) -> list[dict]:
         """The first ``grounding_cases`` val crops (as the paper protocol crops them), in
         batches of ``batch_size``; the last is padded with ``valid`` False rows."""
-        from jaxmotion.sample import SamplerSpec, load_cases
+        from jaxmotion.diffusion import SamplerSpec
+        from jaxmotion.data.cases import load_cases
 
         self.probe_spec = SamplerSpec("ddim", int(cfg.grounding_steps),
                                       guidance=float(cfg.grounding_guidance))
@@ -252,7 +225,7 @@ class ADMTask(_DataTask):
         distance (``min_dist``, metres), as :mod:`jaxmotion.eval.grounding` defines them."""
         from jaxmotion.eval.grounding import affordance_grounding
         from jaxmotion.geometry.affordance import affordance_to_distance
-        from jaxmotion.sample import adm_map_one
+        from jaxmotion.pipelines.affordance import adm_map_one
 
         keys = jax.random.split(key, batch["points"].shape[0])
         # an ADM with the target input is probed as generate runs it: told the target
@@ -278,14 +251,14 @@ class ADMTask(_DataTask):
         from jaxmotion.diffusion import diffusion_loss
         from jaxmotion.models import adm_text_cond
 
-        feats = model.features(batch["points"], batch["colors"])
         x0 = (batch["affordance"] - self.mean) / self.std
-        fixed = {"features": feats, "xyz": batch["points"]}
+        target = None
         if model.adm.cfg.target_input:  # the known target, dropped per example (target_drop)
             key, k_drop = jax.random.split(key)
             p = self.target_drop if train else 0.0
             keep = jax.random.uniform(k_drop, (x0.shape[0], 1)) >= p
-            fixed["target"] = jnp.asarray(batch["target_mask"], jnp.float32) * keep
+            target = jnp.asarray(batch["target_mask"], jnp.float32) * keep
+        fixed = model.condition(batch["points"], batch["colors"], target)
 
         def denoise(x, t, cond):
             return model.adm(x, t, {**adm_text_cond(cond["text"]), **fixed},
@@ -299,7 +272,7 @@ class ADMTask(_DataTask):
 
 def _init_adm(adm, cfg) -> None:
     """Start ``adm`` from the weights of another ADM run (``cfg.init_from``)."""
-    from jaxmotion.train.export import apply_weights, load_weights, weights_path
+    from jaxmotion.models.weights import apply_weights, load_weights, weights_path
 
     path = weights_path(cfg.init_from)
     tensors, saved = load_weights(path)
@@ -331,7 +304,7 @@ class AMDMNet(nnx.Module):
         self.adm_net = adm_net
 
 
-class AMDMTask(_DataTask):
+class AMDMTask(DataTask):
     trainable = nnx.All(nnx.Param, nnx.PathContains("amdm"))
 
     def text_tokens(self, cfg) -> int:
@@ -351,7 +324,7 @@ class AMDMTask(_DataTask):
         self.adm_steps = int(cfg.adm_sampler_steps)
         adm_net = None
         if self.predicted_fraction > 0 and cfg.model.scene_input == "affordance":
-            from jaxmotion.train.export import read_config
+            from jaxmotion.models.weights import read_config
 
             if cfg.adm_workdir and read_config(cfg.adm_workdir).get("crop", {}).get(
                     "centre") == "room":
@@ -359,6 +332,10 @@ class AMDMTask(_DataTask):
                     f"adm_workdir={cfg.adm_workdir} is a room-view ADM (crop.centre=room); the "
                     "AMDM's predicted maps are sampled on its own crops, so they need a "
                     "crop-view ADM: point adm_workdir to one, or set predicted_fraction=0")
+            if not cfg.adm_workdir:
+                raise ValueError("predicted_fraction > 0 needs a trained ADM: set "
+                                 "adm_workdir=DIR (or predicted_fraction=0 to train on "
+                                 "ground-truth affordance only)")
             adm_net, self.adm_schedule, _ = load_adm(cfg.adm_workdir)
             self.adm_text_tokens = int(adm_net.adm.cfg.text_tokens)
         return AMDMNet(AMDM(cfg.model, rngs=rngs), adm_net)
@@ -373,8 +350,9 @@ class AMDMTask(_DataTask):
         from jaxmotion.models import adm_text_cond
 
         net = model.adm_net
-        feats = net.features(batch["points"], batch["colors"])
-        fixed = {"features": feats, "xyz": batch["points"],
+        # an ADM that reads a known target is told the batch's target, as generate tells it
+        target = batch["target_mask"] if net.adm.cfg.target_input else None
+        fixed = {**net.condition(batch["points"], batch["colors"], target),
                  **adm_text_cond(_text_condition(batch))}
 
         def denoise(x, t, cond):
@@ -411,36 +389,6 @@ class AMDMTask(_DataTask):
 
         loss = diffusion_loss(k_loss, denoise, self.schedule, x0, cond, mask, cond_drop_prob=0.0)
         return loss, {}
-
-
-def load_adm(workdir):
-    """Frozen ADM (with its backbone), its schedule and its affordance statistics
-    ``(mean [6], std [6])`` from an ADM training workdir or its ``.safetensors`` weights
-    file (one read of the file)."""
-    from jaxmotion.diffusion import make_schedule
-    from jaxmotion.models import ADMConfig, make_adm
-    from jaxmotion.train.export import abstract_module, apply_weights, load_weights, weights_path
-
-    if not workdir:
-        raise ValueError("predicted_fraction > 0 needs a trained ADM: set adm_workdir=DIR (or "
-                         "predicted_fraction=0 to train on ground-truth affordance only)")
-    path = weights_path(workdir)
-    src = str(path)
-    tensors, saved = load_weights(path)
-    backbone = load_backbone(tensors=tensors, model_config=saved["backbone_model"],
-                             prefix="backbone/", source=src)
-    adm = abstract_module(lambda: make_adm(config_from_dict(ADMConfig, saved["model"]),
-                                           rngs=nnx.Rngs(0)))
-    net = ADMNet(backbone, adm)
-    apply_weights(net.adm, tensors, prefix="adm/", source=src)
-    net.eval()
-    sched = make_schedule(saved["diffusion"]["schedule"], saved["diffusion"]["steps"])
-    missing = [k for k in ("stats/affordance_mean", "stats/affordance_std") if k not in tensors]
-    if missing:
-        raise ValueError(f"{src} has no {missing}: retrain ADM with this jaxmotion version")
-    stats = (jnp.asarray(tensors["stats/affordance_mean"]),
-             jnp.asarray(tensors["stats/affordance_std"]))
-    return net, sched, stats
 
 
 TASKS = {"segmentation": SegmentationTask, "adm": ADMTask, "amdm": AMDMTask,

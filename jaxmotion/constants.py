@@ -1,0 +1,19 @@
+"""Constants every stage shares, each defined once (light: imports nothing heavy).
+
+- :data:`SCENE_FPS`: frame rate of scene-interaction motions (HUMANISE, the synthetic world,
+  every motion ``generate`` makes): 30 frames per second.
+- :data:`NUM_JOINTS`: the 22 SMPL-X body joints (order: :data:`jaxmotion.geometry.skeleton.JOINT_NAMES`).
+- :data:`AFFORDANCE_JOINTS`, :data:`AFFORDANCE_SIGMA`: the affordance map's six joints (pelvis,
+  feet, neck, wrists) and its Gaussian width σ = 0.8 m (paper eq. 1–2).
+- :data:`TEXT_ENCODER`: the sentence encoder every model here reads (all-MiniLM-L6-v2).
+"""
+
+from __future__ import annotations
+
+__all__ = ["AFFORDANCE_JOINTS", "AFFORDANCE_SIGMA", "NUM_JOINTS", "SCENE_FPS", "TEXT_ENCODER"]
+
+SCENE_FPS: float = 30.0
+NUM_JOINTS: int = 22
+AFFORDANCE_JOINTS: tuple[int, ...] = (0, 10, 11, 12, 20, 21)
+AFFORDANCE_SIGMA: float = 0.8
+TEXT_ENCODER: str = "minilm"

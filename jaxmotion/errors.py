@@ -1,0 +1,14 @@
+"""The error a user's bad input raises: its message names the problem and the fix.
+
+Every stage of ``generate`` (options, scene, grounding, checkpoints, text, output folder)
+raises :class:`GenerateError` for input it cannot use, before any heavy work; the command line
+prints the message on one line and exits with code 2, without a traceback.
+"""
+
+from __future__ import annotations
+
+__all__ = ["GenerateError"]
+
+
+class GenerateError(ValueError):
+    """Bad input to :func:`jaxmotion.generate`; the message names the problem and the fix."""

@@ -1,0 +1,162 @@
+"""The output folder of ``generate``: every file written atomically, nothing half-written.
+
+:func:`write_generation` writes ``motion.npz`` (every field of a
+:class:`~jaxmotion.result.Generation`), ``motion.bvh``, ``motion.glb``, the video and
+``viewer.html``; :func:`check_output_folder` tells before any work whether a folder can take
+them; :func:`summary` is the JSON line the command line prints.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from jaxmotion.errors import GenerateError
+
+__all__ = ["check_output_folder", "scene_heat", "summary", "write_generation"]
+
+
+def write_generation(res, out, *, video: str | None = "gif", bvh_sample: int = 0) -> dict[str, Path]:
+    """Write the outputs into folder ``out`` (created); returns ``{name: path}``.
+
+    ``motion.npz`` (every field), ``motion.bvh`` (sample ``bvh_sample``), ``motion.glb``
+    (skinned mannequins with the room), ``motion.gif`` / ``motion.mp4`` (``video="gif"|"mp4"``,
+    None to skip) and ``viewer.html``. Files are built in a temporary folder and moved in
+    at the end, so an error leaves no half-written output.
+    """
+    if video not in (None, "gif", "mp4"):
+        raise GenerateError(f"video must be 'gif', 'mp4' or None, got {video!r}")
+    if not res.smplx:
+        raise GenerateError("this result has no SMPL-X fit (fit=False): BVH and GLB need it")
+    out = check_output_folder(out)
+    fresh = not out.exists()
+    parent = out.parent if fresh else out
+    parent.mkdir(parents=True, exist_ok=True)
+    written: dict[str, Path] = {}
+    # a new folder is built whole beside its final name and renamed into place (one atomic
+    # step); into an existing folder each file is moved in whole, once all are built
+    with tempfile.TemporaryDirectory(prefix=f".{out.name}.generate-", dir=parent) as tmp:
+        tmp = Path(tmp)
+        _write_files(res, tmp, video, bvh_sample)
+        if fresh:
+            mask = os.umask(0)
+            os.umask(mask)
+            os.chmod(tmp, 0o777 & ~mask)  # a folder as mkdir makes it, not the temporary 0700
+            os.rename(tmp, out)
+            tmp.mkdir()  # for the context manager's clean-up
+            return {f.name: f for f in sorted(out.iterdir())}
+        for f in sorted(tmp.iterdir()):
+            os.replace(f, out / f.name)
+            written[f.name] = out / f.name
+    return written
+
+
+def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
+    from jaxmotion import export
+
+    with open(tmp / "motion.npz", "wb") as f:
+        np.savez(f, joints=res.joints.astype(np.float32), fps=np.float32(res.fps),
+                 mask=res.mask, text=np.array(res.text),
+                 **{k: np.asarray(v, np.float32) for k, v in res.smplx.items()},
+                 fit_error=res.fit_error.astype(np.float32),
+                 scene_rotation=res.rotation.astype(np.float32),
+                 scene_shift=res.shift.astype(np.float32),
+                 crop_xyz=res.crop_xyz.astype(np.float32),
+                 affordance=res.affordance.astype(np.float16),
+                 object_id=np.int64(-1 if res.object_id is None else res.object_id),
+                 target_id=np.int64(-1 if res.target_id is None else res.target_id),
+                 seed=np.int64(res.seed), steps=np.int64(res.steps),
+                 guidance=np.asarray(res.guidance, np.float32),
+                 consistency=np.float32(res.consistency),
+                 scene_name=np.array(res.scene.name),
+                 grounding=np.array(res.grounding),
+                 excluded=np.asarray(res.excluded, np.int64),
+                 adm_candidates=np.int64(res.adm_candidates),
+                 adm_steps=np.int64(res.adm_steps),
+                 motion_candidates=np.int64(res.motion_candidates),
+                 **({} if res.view_xyz is None else {
+                     "view_xyz": res.view_xyz.astype(np.float32),
+                     "view_affordance": res.view_affordance.astype(np.float16)}))
+    p = res.smplx
+    i = int(bvh_sample)
+    export.write_bvh(tmp / "motion.bvh", p["global_orient"][i], p["body_pose"][i],
+                     p["transl"][i], p["betas"][i], res.fps)
+    xyz, rgb = _subsample(res.scene.xyz, res.scene.rgb, 60_000, res.seed)
+    export.write_glb(tmp / "motion.glb", global_orient=p["global_orient"],
+                     body_pose=p["body_pose"], transl=p["transl"], betas=p["betas"],
+                     fps=res.fps, scene_xyz=xyz, scene_rgb=rgb)
+    heat = scene_heat(res, xyz)
+    if video:
+        export.render_motion_video(tmp / f"motion.{video}", xyz, rgb, res.joints,
+                                   res.fps, affordance=None)
+    export.write_viewer_html(tmp / "viewer.html", scene_xyz=xyz, scene_rgb=rgb,
+                             joints=res.joints, fps=res.fps, text=res.text,
+                             affordance=heat)
+
+
+def check_output_folder(out) -> Path:
+    """``out`` as a :class:`~pathlib.Path` once it is known to take the outputs: an existing
+    folder, or a new one whose nearest existing parent can be written (tried, not guessed:
+    permissions, a read-only file system). :class:`GenerateError` naming the fix otherwise;
+    nothing is left behind by the check."""
+    out = Path(out).expanduser()
+    if out.exists() and not out.is_dir():
+        raise GenerateError(f"--out {out}: is a file, not a folder; choose a folder name "
+                            "(it is created)")
+    probe = out
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise GenerateError(f"--out {out}: {probe} is a file, so the folder cannot be "
+                            "created there; choose another path")
+    try:
+        with tempfile.TemporaryDirectory(prefix=".jaxmotion-write-test-", dir=probe):
+            pass
+    except OSError as e:
+        raise GenerateError(f"--out {out}: cannot write in {probe} ({e.strerror or e}); "
+                            "choose a folder you can write to") from None
+    return out
+
+
+def scene_heat(res, xyz: np.ndarray) -> np.ndarray:
+    """The first sample's affordance (strongest channel) carried to ``xyz``: from the room
+    view when there is one (nearest view point within 30 cm), else from the crop (within
+    10 cm); 0 elsewhere."""
+    from scipy.spatial import cKDTree
+
+    src, maps, reach = res.crop_xyz, res.affordance, 0.1
+    if res.view_xyz is not None:
+        src, maps, reach = res.view_xyz, res.view_affordance, 0.3
+    d, idx = cKDTree(src).query(xyz, k=1, distance_upper_bound=reach)
+    heat = np.zeros(len(xyz), np.float32)
+    ok = np.isfinite(d)
+    heat[ok] = maps[0, idx[ok]].max(axis=-1)
+    return heat
+
+
+def _subsample(xyz, rgb, n: int, seed: int):
+    if len(xyz) <= n:
+        return xyz, rgb
+    keep = np.sort(np.random.default_rng(seed).choice(len(xyz), n, replace=False))
+    return xyz[keep], rgb[keep]
+
+
+# --------------------------------------------------------------------------- region
+
+
+def summary(res) -> str:
+    """A JSON line describing a result (for the command line)."""
+    return json.dumps({"text": res.text, "samples": res.num_samples, "frames": int(res.mask.sum()),
+                       "target_id": res.target_id, "grounding": res.grounding,
+                       "excluded": list(res.excluded), "adm_candidates": res.adm_candidates,
+                       "adm_steps": res.adm_steps,
+                       "motion_candidates": res.motion_candidates, "steps": res.steps,
+                       "fps": res.fps,
+                       "fit_error_cm": [round(float(e) * 100, 2) for e in res.fit_error],
+                       "timings_s": {k: round(v, 3) for k, v in res.timings.items()}})

@@ -1,0 +1,213 @@
+"""Where in the room the models look: the crop square for a text, and how it was chosen.
+
+The AMDM sees a ``crop.size`` square (4 m) of the room, as in training, where the target object
+was always inside it. With a known target the square is centred on it; otherwise the
+candidates are the objects the text names (:func:`jaxmotion.grounding.target.candidate_objects`)
+and the ADM's map chooses among them:
+
+- a **crop-view ADM** (the shipped one; trained on the AMDM's squares) is run on a square
+  centred on each candidate, and the one its map lights up most is chosen (affordance
+  grounding); without candidates, the room is tiled with half-overlapping squares and the tile
+  with the strongest predicted pelvis-affordance peak is used;
+- a **room-view ADM** (trained with ``crop.centre=room``; experimental) is run once on its view
+  of the whole room (rooms wider than its 8 m square are tiled) for every sample; the candidate
+  the maps light up most is chosen, or without candidates the square is centred on the
+  strongest pelvis affordance.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from jaxmotion.grounding.target import candidate_objects
+
+__all__ = ["AdmChooser", "centre_on_object", "choose_region", "clamp_centre", "find_region",
+           "lit", "region_from_view", "room_view_maps", "tile_centres"]
+
+
+@dataclass(frozen=True)
+class AdmChooser:
+    """What region choice needs to run a crop-view ADM: ``get_pipe()`` returns the pipeline
+    (called only when the ADM runs), ``text`` its text condition for one text (batch of one),
+    ``key()`` the ADM's PRNG key (called only when the ADM runs), ``sampler`` its
+    :class:`~jaxmotion.diffusion.SamplerSpec`, ``seed`` the seed of the crops' point sampling."""
+
+    get_pipe: Callable[[], Any]
+    text: Any
+    key: Callable[[], Any]
+    sampler: Any
+    seed: int
+
+
+def _crops(room, centres, spec, seed: int, tag: int):
+    """Crops at several centres, skipping ones with no point: a list of
+    ``(index into centres, pick, points, colours)``."""
+    from jaxmotion.data.crop import crop_at, model_colors
+
+    out = []
+    for i, c in enumerate(centres):
+        try:
+            pick, p, _, _ = crop_at(np.random.default_rng([int(seed), tag, i]), room.xyz, c, spec)
+        except ValueError:  # a tile outside an L-shaped room
+            continue
+        out.append((i, pick, p, model_colors(room.rgb[pick])))
+    return out
+
+
+def _adm_maps(get_pipe, crops, emb, key, sampler) -> np.ndarray:
+    import jax
+
+    b = len(crops)
+    return np.asarray(jax.device_get(get_pipe().sample_affordance(
+        key, np.stack([c[2] for c in crops]), np.stack([c[3] for c in crops]),
+        jax.tree.map(lambda a: np.broadcast_to(a[0], (b, *a.shape[1:])), emb), sampler)))
+
+
+def lit(maps, instance, object_id) -> float:
+    """How much ``maps [N,6]`` light up an object: the mean over its points (``instance [N]``
+    == ``object_id``) of the strongest channel; −1 when none of its points is there."""
+    on = instance == object_id
+    return float(maps[on].max(axis=-1).mean()) if on.any() else -1.0
+
+
+def find_region(room, text: str, grounding: str, spec, *, view=None,
+                adm: AdmChooser | None = None):
+    """The crop square for ``text`` when no target object is given: ``(centre [2], chosen
+    object id or None, how)``. ``view``: a room-view ADM's ``(view_index, maps)``
+    (:func:`room_view_maps`); else ``adm`` runs a crop-view ADM (:func:`choose_region`).
+    ``how`` (:attr:`jaxmotion.result.Generation.grounding`): ``scene graph`` or ``class``
+    when the text alone singled the object out, ``adm`` when the ADM chose among several,
+    ``adm peak`` when the text names no object of the room."""
+    lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
+    candidates, how = candidate_objects(room, text, grounding)
+    if view is not None:
+        centre, chosen = region_from_view(room, candidates, *view, spec, lo, hi)
+    else:
+        if adm is None:
+            raise ValueError("find_region needs a room-view ADM's view or an AdmChooser")
+        centre, chosen = choose_region(adm, room, candidates, spec, lo, hi)
+    if len(candidates) > 1:
+        how = "adm"
+    elif not candidates:
+        how = "adm peak"
+    return centre, chosen, how
+
+
+def choose_region(adm: AdmChooser, room, candidates, spec, lo, hi):
+    """The crop centre for a text without a known target (see the module docstring):
+
+    - with ``candidates`` (:func:`~jaxmotion.grounding.target.candidate_objects`): the ADM
+      is run on a crop centred on each and the one whose points it lights up most (mean over
+      its points of the strongest channel) wins;
+    - otherwise the room is tiled with half-overlapping squares and the tile holding the
+      strongest pelvis-affordance peak (mean of its 32 strongest points) wins.
+    ``lo``, ``hi``: the room's xy bounds. Returns ``(centre, chosen object id or None)``.
+    """
+    if candidates:
+        centres = [centre_on_object(o, lo, hi, spec.size) for o in candidates]
+        if len(candidates) == 1:
+            return centres[0], candidates[0]["id"]
+        crops = _crops(room, centres, spec, adm.seed, 2)
+        maps = _adm_maps(adm.get_pipe, crops, adm.text, adm.key(), adm.sampler)
+        scores = [lit(a, room.instance[pick], candidates[i]["id"])
+                  for (i, pick, *_), a in zip(crops, maps, strict=True)]
+        i = crops[int(np.argmax(scores))][0]
+        return centres[i], candidates[i]["id"]
+    tiles = tile_centres(lo, hi, spec.size)
+    if len(tiles) == 1:
+        return tiles[0], None
+    crops = _crops(room, tiles, spec, adm.seed, 3)
+    maps = _adm_maps(adm.get_pipe, crops, adm.text, adm.key(), adm.sampler)
+    scores = [float(np.sort(a[:, 0])[-32:].mean()) for a in maps]
+    return np.asarray(tiles[crops[int(np.argmax(scores))][0]]), None
+
+
+def room_view_maps(room, adm_cfg, emb, key, sampler, k: int, seed: int, aot_dir, fingerprint,
+                   get_pipe):
+    """A room-view ADM's maps for ``k`` samples: ``(view_index [M] into the scene's points,
+    maps [K,M,6])``.
+
+    The view is the ADM's training square (``crop.size``, no rotation) centred on the room; a
+    room wider than it is tiled with half-overlapping squares (:func:`tile_centres`) and the
+    tiles' points are concatenated."""
+    import jax
+
+    from jaxmotion.compiled import cached_call
+    from jaxmotion.data.crop import crop_spec_from_config
+
+    view_spec = crop_spec_from_config(adm_cfg)
+    lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
+    views = _crops(room, tile_centres(lo, hi, view_spec.size), view_spec, seed, 4)
+    v = len(views)
+    pts = np.stack([c[2] for c in views])
+    col = np.stack([c[3] for c in views])
+    # every sample sees every tile: a batch of K x V
+    def rep(x):
+        return np.ascontiguousarray(np.repeat(x[None], k, 0).reshape(k * v, *x.shape[1:]))
+
+    args = (np.asarray(jax.random.key_data(key)), rep(pts), rep(col),
+            jax.tree.map(lambda a: np.ascontiguousarray(np.broadcast_to(a, (k * v, *a.shape))),
+                         emb))
+
+    def build():
+        pipe = get_pipe()
+        return lambda kd, p, c, e: pipe.sample_affordance(jax.random.wrap_key_data(kd), p, c, e,
+                                                          sampler)
+
+    if aot_dir is None:  # sample_affordance is jitted itself: no tracing per call
+        maps = build()(*args)
+    else:
+        maps = cached_call(aot_dir, "adm_view", fingerprint, build, args)
+    maps = np.asarray(jax.device_get(maps))
+    return np.concatenate([c[1] for c in views]), maps.reshape(k, v * pts.shape[1], -1)
+
+
+def region_from_view(room, candidates, view_index, view_maps, spec, lo, hi):
+    """The AMDM's square from a room-view ADM's maps (module docstring, step 2): the candidate
+    the mean map lights up most (mean over its view points of the strongest channel), else
+    the strongest pelvis affordance. Returns ``(centre, chosen object id or None)``."""
+    mean = view_maps.mean(axis=0)  # [M, 6], over samples
+    if len(candidates) == 1:
+        return centre_on_object(candidates[0], lo, hi, spec.size), candidates[0]["id"]
+    if candidates:
+        inst = room.instance[view_index]
+        scores = [lit(mean, inst, o["id"]) for o in candidates]
+        best = candidates[int(np.argmax(scores))]
+        return centre_on_object(best, lo, hi, spec.size), best["id"]
+    peak = room.xyz[view_index[int(np.argmax(mean[:, 0]))]]
+    return clamp_centre(peak[:2], lo, hi, spec.size), None
+
+
+def tile_centres(lo, hi, size: float) -> list[np.ndarray]:
+    """Square centres tiling [lo, hi] (xy) with half-square overlap."""
+    axes = []
+    for a in range(2):
+        ext = hi[a] - lo[a]
+        if ext <= size:
+            axes.append([0.5 * (lo[a] + hi[a])])
+        else:
+            n = int(np.ceil((ext - size) / (0.5 * size))) + 1
+            axes.append(list(np.linspace(lo[a] + 0.5 * size, hi[a] - 0.5 * size, n)))
+    return [np.array([x, y]) for x in axes[0] for y in axes[1]]
+
+
+def centre_on_object(obj, lo, hi, size: float) -> np.ndarray:
+    """A square centre on the object's xy box centre, kept inside the room (:func:`clamp_centre`)."""
+    c = 0.5 * (np.asarray(obj["bbox_min"][:2]) + np.asarray(obj["bbox_max"][:2]))
+    return clamp_centre(c, lo, hi, size)
+
+
+def clamp_centre(c, lo, hi, size: float) -> np.ndarray:
+    """Move a square centre so the square stays inside [lo, hi] where the room allows."""
+    half = 0.5 * size
+    out = np.array(c, np.float64)
+    for a in range(2):
+        if hi[a] - lo[a] > size:
+            out[a] = np.clip(out[a], lo[a] + half, hi[a] - half)
+        else:
+            out[a] = 0.5 * (lo[a] + hi[a])
+    return out

@@ -1,0 +1,172 @@
+"""The options of ``generate``: one frozen dataclass, validated once, shared by every caller.
+
+:class:`GenerateOptions` holds how to sample (steps, guidance, candidates, grounding, ...) with
+the shipped defaults, and checks every value when it is built, so the command line, the Python
+API, the eval runner and the probes share the defaults and the validation (the ``check_*``
+functions are the per-value checks the eval runner's ``--model`` syntax reuses). A bad value is a
+:class:`~jaxmotion.errors.GenerateError` whose message names the fix, raised before anything is
+loaded.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from jaxmotion.errors import GenerateError
+
+__all__ = [
+    "DEFAULT_ADM_CANDIDATES", "DEFAULT_ADM_STEPS", "DEFAULT_CONSISTENCY", "DEFAULT_GUIDANCE",
+    "DEFAULT_MOTION_CANDIDATES", "DEFAULT_STEPS", "DEFAULT_TEXT", "GROUNDINGS", "MAX_ADM_CANDIDATES",
+    "MAX_MOTION_CANDIDATES", "MAX_SAMPLES", "GenerateOptions", "check_candidates",
+    "check_consistency", "check_guidance", "check_positive_int",
+]
+
+DEFAULT_TEXT = "sit on the chair next to the table"
+#: Classifier-free guidance scales (ADM, AMDM) of the shipped checkpoints, chosen on the
+#: synthetic validation split (docs/results.md, "Guidance"): w = 5 on the ADM sharpens its maps;
+#: guiding the AMDM made motions end farther away.
+DEFAULT_GUIDANCE: tuple[float, float] = (5.0, 1.0)
+#: Strength of affordance-consistency guidance on the AMDM (0 = off; see
+#: :mod:`jaxmotion.diffusion.affordance_guidance`), chosen on the validation split
+#: (docs/results.md, "Consistency guidance").
+DEFAULT_CONSISTENCY: float = 0.5
+#: ADM maps drawn per sample once the target object is known; the one lighting it most is kept
+#: (docs/results.md, "The generate protocol").
+DEFAULT_ADM_CANDIDATES: int = 16
+#: DDIM steps of the affordance stage: how often the ADM's maps light the target depends on how
+#: many are drawn, not on their steps (3 to 20), so the time buys candidates.
+DEFAULT_ADM_STEPS: int = 5
+#: DDIM steps of the motion stage (AMDM).
+DEFAULT_STEPS: int = 20
+#: Motions drawn per sample from its map once the target object is known; the one whose body
+#: comes closest to the target at the anchor frame is kept (docs/results.md, "Best of M motions").
+DEFAULT_MOTION_CANDIDATES: int = 4
+MAX_SAMPLES = 256
+MAX_ADM_CANDIDATES = 32
+MAX_MOTION_CANDIDATES = 16
+GROUNDINGS = ("auto", "adm")
+
+
+def check_positive_int(name: str, value, lo: int = 1, hi: int | None = None) -> int:
+    """``value`` as an int in [lo, hi]; :class:`GenerateError` otherwise (bools refused)."""
+    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < lo or (
+            hi is not None and value > hi):
+        span = f"≥ {lo}" if hi is None else f"in [{lo}, {hi}]"
+        raise GenerateError(f"{name} must be an integer {span}, got {value!r}")
+    return int(value)
+
+
+def check_candidates(name: str, value) -> int:
+    """``adm_candidates`` (1..32) or ``motion_candidates`` (1..16)."""
+    hi = MAX_ADM_CANDIDATES if name == "adm_candidates" else MAX_MOTION_CANDIDATES
+    return check_positive_int(name, value, 1, hi)
+
+
+def check_guidance(guidance) -> tuple[float, float]:
+    """``None`` / one scale / an ``(ADM, AMDM)`` pair → two positive floats."""
+    if guidance is None:
+        return DEFAULT_GUIDANCE
+    pair = (guidance, guidance) if np.ndim(guidance) == 0 else tuple(guidance)
+    try:
+        pair = tuple(float(g) for g in pair)
+    except (TypeError, ValueError):
+        pair = ()
+    if len(pair) != 2 or not all(np.isfinite(g) and g > 0 for g in pair):
+        raise GenerateError(f"guidance must be a positive number or an (ADM, AMDM) pair of them "
+                            f"(1 = no guidance), got {guidance!r}")
+    return pair
+
+
+def check_consistency(value) -> float:
+    """``None`` → :data:`DEFAULT_CONSISTENCY`; else a float in [0, 1]."""
+    if value is None:
+        return DEFAULT_CONSISTENCY
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = float("nan")
+    if isinstance(value, bool) or not 0.0 <= v <= 1.0:
+        raise GenerateError(f"consistency must be a number in [0, 1] (0 = off), got {value!r}")
+    return v
+
+
+@dataclasses.dataclass(frozen=True)
+class GenerateOptions:
+    """How :func:`jaxmotion.generate` samples; every field is checked when built.
+
+    Attributes:
+      object_id: target the object with this instance id instead of finding it from the text.
+      samples: K motions, batched by vmap (1..256); seed: the PRNG seed (same seed, same
+        output).
+      steps: DDIM steps of the motion stage (AMDM); adm_steps: of the affordance stage (ADM).
+      guidance: classifier-free guidance ``(ADM, AMDM)``; one number sets both (1 = none).
+      consistency: strength in [0, 1] of affordance-consistency guidance (0 = off).
+      grounding: ``auto`` (a relation in the text narrows the named objects by the scene's
+        geometry before the ADM chooses) or ``adm`` (the ADM alone).
+      adm_candidates: once the target is known, the ADM draws this many maps per sample and
+        the one lighting the target most is kept (1..32).
+      motion_candidates: once the target is known, the AMDM draws this many motions per sample
+        and the one reaching the target at the anchor frame is kept (1..16).
+      checkpoints: None (shipped), a folder with ``adm.safetensors`` / ``amdm.safetensors``,
+        or an ``(adm, amdm)`` pair of workdirs / files.
+      num_points: surface samples taken from a mesh (None: the loader's default).
+      fit: fit SMPL-X bodies (needed to write BVH / GLB); fit_iters: LBFGS iterations.
+      aot: keep the traced programs on disk (:mod:`jaxmotion.compiled`).
+    """
+
+    object_id: int | None = None
+    samples: int = 1
+    seed: int = 0
+    steps: int = DEFAULT_STEPS
+    adm_steps: int = DEFAULT_ADM_STEPS
+    guidance: tuple[float, float] = DEFAULT_GUIDANCE
+    consistency: float = DEFAULT_CONSISTENCY
+    grounding: str = "auto"
+    adm_candidates: int = DEFAULT_ADM_CANDIDATES
+    motion_candidates: int = DEFAULT_MOTION_CANDIDATES
+    checkpoints: str | Path | tuple | None = None
+    num_points: int | None = None
+    fit: bool = True
+    fit_iters: int = 100
+    aot: bool = True
+
+    def __post_init__(self):
+        put = lambda k, v: object.__setattr__(self, k, v)
+        if self.object_id is not None:
+            put("object_id", check_positive_int("object_id", self.object_id, 0))
+        put("samples", check_positive_int("samples", self.samples))
+        if self.samples > MAX_SAMPLES:
+            raise GenerateError(f"samples={self.samples} is more than {MAX_SAMPLES}; generate "
+                                "in several calls")
+        put("seed", check_positive_int("seed", self.seed, 0))
+        put("steps", check_positive_int("steps", self.steps))
+        put("adm_steps", check_positive_int(
+            "adm_steps", DEFAULT_ADM_STEPS if self.adm_steps is None else self.adm_steps))
+        put("guidance", check_guidance(self.guidance))
+        put("consistency", check_consistency(self.consistency))
+        if self.grounding not in GROUNDINGS:
+            raise GenerateError(f"grounding must be 'auto' or 'adm', got {self.grounding!r}")
+        for name, default in (("adm_candidates", DEFAULT_ADM_CANDIDATES),
+                              ("motion_candidates", DEFAULT_MOTION_CANDIDATES)):
+            value = getattr(self, name)
+            put(name, check_candidates(name, default if value is None else value))
+        if self.num_points is not None:
+            put("num_points", check_positive_int("num_points", self.num_points, 1))
+        put("fit_iters", check_positive_int("fit_iters", self.fit_iters))
+        if isinstance(self.checkpoints, list):
+            put("checkpoints", tuple(self.checkpoints))
+
+    @classmethod
+    def build(cls, **kwargs) -> GenerateOptions:
+        """Options from keyword arguments where None means "the default" (as the command
+        line and :func:`jaxmotion.generate` pass them); unknown names are refused."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(kwargs) - names)
+        if unknown:
+            raise GenerateError(f"unknown option(s) {', '.join(unknown)}; valid: "
+                                + ", ".join(sorted(names)))
+        keep_none = {"object_id", "checkpoints", "num_points"}
+        return cls(**{k: v for k, v in kwargs.items() if v is not None or k in keep_none})

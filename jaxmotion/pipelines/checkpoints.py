@@ -1,0 +1,96 @@
+"""Checkpoint files: the shipped defaults, a user's folder or workdirs, and loading them.
+
+A checkpoint folder (the shipped ``jaxmotion/assets`` too) holds ``adm.safetensors`` and
+``amdm.safetensors``, and optionally ``adm_text.safetensors`` (:data:`TEXT_ADM`): the ADM used
+when no target object is known, beside an ``adm.safetensors`` that reads one
+(``model.target_input``; told no target, such an ADM draws worse maps than one trained on the
+text alone: docs/results.md, "The ADM told the target").
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+from jaxmotion.errors import GenerateError
+
+__all__ = ["TEXT_ADM", "adm_text_tokens", "adm_view", "default_checkpoints", "load_pipeline",
+           "resolve_checkpoints", "text_adm_for", "weights_config"]
+
+_ASSETS = Path(__file__).resolve().parent.parent / "assets"
+
+
+def default_checkpoints() -> tuple[Path, Path]:
+    """Paths of the shipped ADM and AMDM weights."""
+    return _ASSETS / "adm.safetensors", _ASSETS / "amdm.safetensors"
+
+
+#: The ADM used when no target object is known, beside a folder's ``adm.safetensors``
+#: (optional: without it ``adm.safetensors`` serves both).
+TEXT_ADM = "adm_text.safetensors"
+
+
+def text_adm_for(adm_file: Path) -> Path:
+    """The ADM for when no target is known: :data:`TEXT_ADM` beside a folder's
+    ``adm.safetensors``, else the ADM itself."""
+    other = Path(adm_file).with_name(TEXT_ADM)
+    return other if Path(adm_file).name == "adm.safetensors" and other.is_file() else Path(adm_file)
+
+
+def adm_view(adm_config: dict) -> str:
+    """An ADM's ``crop.centre`` (``motion``, the crop view, when its file predates it)."""
+    return adm_config.get("crop", {}).get("centre", "motion")
+
+
+def adm_text_tokens(adm_config: dict) -> int:
+    """How many token states an ADM reads (``model.text_tokens``; 0 = the pooled text)."""
+    return int(adm_config.get("model", {}).get("text_tokens", 0))
+
+
+def resolve_checkpoints(checkpoints) -> tuple[Path, Path]:
+    """``(ADM file, AMDM file)`` for ``checkpoints``: None (the shipped ones), a folder with
+    ``adm.safetensors`` and ``amdm.safetensors``, or an ``(adm, amdm)`` pair of training
+    workdirs or files; :class:`GenerateError` when one is missing."""
+    if checkpoints is None:
+        adm, amdm = default_checkpoints()
+        if not (adm.is_file() and amdm.is_file()):
+            raise GenerateError(
+                f"the default checkpoints are missing from {_ASSETS}; reinstall jaxmotion or pass "
+                "checkpoints=DIR (a folder with adm.safetensors and amdm.safetensors)")
+        return adm, amdm
+    if isinstance(checkpoints, (tuple, list)):
+        if len(checkpoints) != 2:
+            raise GenerateError("checkpoints as a pair must be (ADM, AMDM) workdirs or files")
+        from jaxmotion.models.weights import weights_path
+
+        paths = [weights_path(p) for p in checkpoints]
+    else:
+        folder = Path(checkpoints)
+        paths = [folder / "adm.safetensors", folder / "amdm.safetensors"]
+    for p in paths:
+        if not p.is_file():
+            raise GenerateError(f"{p}: no such checkpoint file; a checkpoint folder holds "
+                                "adm.safetensors and amdm.safetensors")
+    return paths[0], paths[1]
+
+
+@functools.lru_cache(maxsize=4)
+def load_pipeline(adm: str, amdm: str):
+    """The :class:`~jaxmotion.pipelines.affordance.AffordancePipeline` of two weights files
+    (kept for the process: a second call with the same files returns the same object)."""
+    from jaxmotion.pipelines.affordance import AffordancePipeline
+
+    try:
+        return AffordancePipeline.from_files(adm, amdm)
+    except (KeyError, ValueError) as e:
+        raise GenerateError(f"checkpoints {adm} and {amdm} do not load together: {e}") from e
+
+
+def weights_config(path) -> dict:
+    """The config stored in a weights file (:func:`jaxmotion.models.weights.read_config`)."""
+    from jaxmotion.models.weights import read_config
+
+    try:
+        return read_config(path)
+    except (OSError, ValueError) as e:
+        raise GenerateError(f"{path}: not a jaxmotion weights file ({e})") from e

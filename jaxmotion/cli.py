@@ -32,8 +32,13 @@ def _cmd_version(args: argparse.Namespace) -> int:
 
 def _cmd_scene_info(args: argparse.Namespace) -> int:
     from jaxmotion.scene import load_scene
+    from jaxmotion.scene.checks import scene_warnings
+    from jaxmotion.scene.demo import demo_scene
 
-    scene = load_scene(args.path, num_points=args.points, seed=args.seed, up=args.up)
+    if args.path == "demo":
+        scene = demo_scene()
+    else:
+        scene = load_scene(args.path, num_points=args.points, seed=args.seed, up=args.up)
     lo, hi = scene.bounds()
     info = {
         "name": scene.name,
@@ -53,6 +58,8 @@ def _cmd_scene_info(args: argparse.Namespace) -> int:
             {"id": o["id"], "category": o["category"],
              "centre": [round(float(a + b) / 2, 3) for a, b in zip(o["bbox_min"], o["bbox_max"])]}
             for o in objects]
+    for message in scene_warnings(scene):
+        print(f"warning: {message}", file=sys.stderr)
     print(json.dumps(info, indent=2))
     return 0
 
@@ -132,32 +139,47 @@ def _unit_arg(text: str) -> float:
 
 
 def _cmd_generate(args: argparse.Namespace) -> int:
+    """Validate everything (options, text, checkpoints, output folder, scene file) before any
+    model is loaded; progress and warnings go to stderr, stdout gets the JSON summary alone."""
     import time
+    import warnings
 
+    from jaxmotion.export.folder import check_output_folder, summary
     from jaxmotion.generation import generate
-    from jaxmotion.export.folder import summary
+    from jaxmotion.options import DEFAULT_TEXT, GenerateOptions
 
     t0 = time.perf_counter()
     if args.checkpoints and len(args.checkpoints) not in (1, 2):
         raise ValueError("--checkpoints takes a folder, or the ADM and AMDM workdirs / files")
     ckpt = None if not args.checkpoints else (
         args.checkpoints[0] if len(args.checkpoints) == 1 else tuple(args.checkpoints))
-    print(f"generating {args.samples} motion(s) for {args.text!r} in {args.scene} ...",
+    options = GenerateOptions.build(
+        object_id=args.object, samples=args.samples, seed=args.seed, steps=args.steps,
+        adm_steps=args.adm_steps, guidance=args.guidance, consistency=args.consistency,
+        grounding=args.grounding, adm_candidates=args.adm_candidates,
+        motion_candidates=args.motion_candidates, checkpoints=ckpt, num_points=args.points)
+    check_output_folder(args.out)
+    if args.scene != "demo":
+        from pathlib import Path
+
+        if not Path(args.scene).is_file():
+            raise FileNotFoundError(f"--scene {args.scene}: no such file; give a mesh or point "
+                                    "cloud (PLY / OBJ / GLB / GLTF / OFF / STL / NPZ) or 'demo'")
+    text = DEFAULT_TEXT if args.text is None else args.text
+    print(f"generating {options.samples} motion(s) for {text!r} in {args.scene} ...",
           file=sys.stderr, flush=True)
-    res = generate(args.scene, args.text, object_id=args.object, samples=args.samples,
-                   seed=args.seed, steps=args.steps, adm_steps=args.adm_steps,
-                   guidance=args.guidance,
-                   consistency=args.consistency, grounding=args.grounding,
-                   adm_candidates=args.adm_candidates,
-                   motion_candidates=args.motion_candidates, checkpoints=ckpt,
-                   num_points=args.points, progress=True)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        res = generate(args.scene, text, options=options, progress=True)
+    for w in caught:
+        print(f"warning: {w.message}", file=sys.stderr)
     t1 = time.perf_counter()
     files = res.save(args.out, video=None if args.video == "none" else args.video)
     res.timings["write"] = time.perf_counter() - t1
     print(f"  {'write':<10} {res.timings['write']:6.2f} s", file=sys.stderr)
     print(f"wrote {', '.join(sorted(files))} to {args.out} in {time.perf_counter() - t0:.1f} s",
           file=sys.stderr)
-    print(summary(res))
+    print(summary(res), flush=True)
     return 0
 
 
@@ -203,7 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--up", choices=("auto", "z", "y"), default="auto", help="up axis of the file")
 
     q = scene_sub.add_parser("info", help="load a scene and print a summary as JSON")
-    q.add_argument("path", help="PLY / OBJ / GLB / GLTF / OFF / STL / NPZ file")
+    q.add_argument("path", help="PLY / OBJ / GLB / GLTF / OFF / STL / NPZ file, or 'demo'")
     scene_common(q)
     q.set_defaults(func=_cmd_scene_info)
 
@@ -274,13 +296,13 @@ def build_parser() -> argparse.ArgumentParser:
         "motion.glb, motion.gif (or .mp4) and viewer.html to --out.",
     )
     p.add_argument("--scene", default="demo", help="scene file, or 'demo' (default)")
-    p.add_argument("--text", default="sit on the chair next to the table",
+    p.add_argument("--text", default=None,
                    help='the instruction (default: "sit on the chair next to the table")')
     p.add_argument("--object", type=int, default=None,
                    help="target object's instance id (skips finding it from the text)")
-    p.add_argument("--samples", type=int, default=1, help="motions to sample (K, default 1)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--steps", type=int, default=20,
+    p.add_argument("--samples", type=int, default=None, help="motions to sample (K, default 1)")
+    p.add_argument("--seed", type=int, default=None, help="PRNG seed (default 0)")
+    p.add_argument("--steps", type=int, default=None,
                    help="DDIM steps of the motion stage (default 20)")
     p.add_argument("--adm-steps", type=int, default=None, metavar="N",
                    help="DDIM steps of the affordance stage (default 5)")
@@ -291,7 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="strength in [0, 1] of affordance-consistency guidance: the motion is "
                    "steered to match the predicted affordance map (default: the tuned value; "
                    "0 = off)")
-    p.add_argument("--grounding", choices=("auto", "adm"), default="auto",
+    p.add_argument("--grounding", choices=("auto", "adm"), default=None,
                    help="auto (default): a relation in the text ('the chair closest to the "
                    "door') narrows the named objects by the room's geometry before the ADM "
                    "chooses (needs an object table: synthetic rooms, labelled scans); adm: the "
@@ -375,17 +397,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError, KeyError) as err:
-        # Expected user errors (bad file, bad config): one clear line, no traceback.
+    except BrokenPipeError:  # output piped into `head` and the like
+        sys.stderr.close()
+        return 0
+    except (ValueError, OSError, KeyError) as err:
+        # Expected user errors (bad file, bad config, a folder that cannot be written): one
+        # clear line, no traceback.
         msg = err.args[0] if isinstance(err, KeyError) and err.args else err
         print(f"jaxmotion {args.command}: error: {msg}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # output piped into `head` and the like
-        sys.stderr.close()
-        return 0
+    except Exception as err:  # noqa: BLE001 - a bug: still no traceback unless asked for
+        import os
+
+        if os.environ.get("JAXMOTION_DEBUG"):
+            raise
+        print(f"jaxmotion {args.command}: internal error: {type(err).__name__}: {err} (rerun "
+              "with JAXMOTION_DEBUG=1 for the traceback, and please report it)", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,6 +9,9 @@ import numpy as np
 import pytest
 
 import jaxmotion
+import jaxmotion.export
+import jaxmotion.options
+import jaxmotion.scene.demo
 from jaxmotion.errors import GenerateError
 from jaxmotion.pipelines.checkpoints import default_checkpoints
 
@@ -92,7 +95,7 @@ def test_same_seed_same_output_and_seeds_differ(result, ckpt):
 
 
 def test_object_id_centres_the_crop_on_the_object(ckpt):
-    scene = jaxmotion.generation.demo_scene()
+    scene = jaxmotion.scene.demo.demo_scene()
     chair = next(o for o in scene.objects if o["category"] == "chair")
     r = jaxmotion.generate(scene, "sit down", object_id=chair["id"], checkpoints=ckpt, fit=False,
                            **FAST)
@@ -204,7 +207,25 @@ def test_save_leaves_nothing_half_written(result, tmp_path, monkeypatch):
     monkeypatch.setattr(export, "write_glb", boom)
     with pytest.raises(OSError, match="disk full"):
         result.save(tmp_path / "out")
-    assert list((tmp_path / "out").iterdir()) == []
+    assert list(tmp_path.iterdir()) == []  # no new folder, no temporary one left
+    (tmp_path / "kept").mkdir()
+    (tmp_path / "kept" / "notes.txt").write_text("mine")
+    with pytest.raises(OSError, match="disk full"):
+        result.save(tmp_path / "kept")
+    assert [p.name for p in (tmp_path / "kept").iterdir()] == ["notes.txt"]
+
+
+def test_output_folder_is_checked_before_any_work(tmp_path):
+    from jaxmotion.errors import GenerateError
+    from jaxmotion.export import check_output_folder
+
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(GenerateError, match="is a file"):
+        check_output_folder(tmp_path / "file")
+    with pytest.raises(GenerateError, match="is a file"):
+        check_output_folder(tmp_path / "file" / "sub")
+    assert check_output_folder(tmp_path / "new" / "deeper") == tmp_path / "new" / "deeper"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]  # the check leaves nothing
 
 
 def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
@@ -217,7 +238,9 @@ def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
     out = tmp_path / "ok"
     assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
                  "--out", str(out), "--checkpoints", *ckpt]) == 0
-    line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    stdout = capsys.readouterr().out.strip().splitlines()
+    assert len(stdout) == 1  # the JSON summary alone (progress goes to stderr): `| jq` works
+    line = json.loads(stdout[0])
     assert line["samples"] == 1 and line["frames"] == 120
     assert (out / "motion.bvh").is_file() and not (out / "motion.gif").exists()
     with np.load(out / "motion.npz") as f:
@@ -328,10 +351,10 @@ def test_known_target_keeps_the_map_off_its_class_mates(tiny_runs, ckpt):
     plain = jaxmotion.generate(room, f"walk to the {dup['category']}", grounding="adm",
                                checkpoints=ckpt, fit=False, **FAST)
     assert plain.excluded == ()
-    line = json.loads(jaxmotion.generation.summary(r))
+    line = json.loads(jaxmotion.export.summary(r))
     assert line["excluded"] == list(others)
     # the target is known: the default number of maps (recorded in the result and its line)
-    assert r.adm_candidates == line["adm_candidates"] == jaxmotion.generation.DEFAULT_ADM_CANDIDATES
+    assert r.adm_candidates == line["adm_candidates"] == jaxmotion.options.DEFAULT_ADM_CANDIDATES
 
 
 def test_text_only_adm_when_no_target_is_known(ckpt, tmp_path, monkeypatch):

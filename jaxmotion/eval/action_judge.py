@@ -105,6 +105,7 @@ FEET_FLOOR_TOLERANCE = 0.05
 SURFACE_SEARCH_RADIUS = 0.2
 
 _PELVIS, _NECK = 0, 12
+_FRAME_BUCKET, _POINT_BUCKET = 32, 256  # single-motion inputs are padded to these sizes
 _HIPS, _KNEES, _ANKLES = (1, 2), (4, 5), (7, 8)
 
 
@@ -211,16 +212,17 @@ _report_jit = jax.jit(_report_one)
 _report_batch = jax.jit(jax.vmap(_report_one))
 
 
-def _check(joints, mask, lead):
+def _check(joints, mask, batched: bool):
     joints = jnp.asarray(joints, jnp.float32)
-    if joints.ndim != len(lead) + 3 or joints.shape[-2:] != (NUM_JOINTS, 3):
-        raise ValueError(f"joints must be [{', '.join(lead)}T, {NUM_JOINTS}, 3], got {joints.shape}")
-    shape = joints.shape[:-2]
+    want = "[B, T, 22, 3]" if batched else "[T, 22, 3]"
+    if joints.ndim != 3 + batched or joints.shape[-2:] != (NUM_JOINTS, 3):
+        raise ValueError(f"joints must be {want}, got shape {joints.shape}")
     if joints.shape[-3] == 0:
         raise ValueError("joints has no frames")
+    shape = joints.shape[:-2]
     mask = jnp.ones(shape, bool) if mask is None else jnp.asarray(mask).astype(bool)
     if mask.shape != shape:
-        raise ValueError(f"mask must have shape {list(shape)}, got {list(mask.shape)}")
+        raise ValueError(f"mask must have shape {shape}, got {mask.shape}")
     return joints, mask
 
 
@@ -230,13 +232,27 @@ def _check_points(points, point_mask, lead: tuple):
             raise ValueError("point_mask given without points")
         return None, None
     points = jnp.asarray(points, jnp.float32)
-    if points.shape[:-2] != lead or points.ndim != len(lead) + 2 or points.shape[-1] != 3:
-        raise ValueError(f"points must be [{', '.join(map(str, lead + ('N',)))}, 3], got {points.shape}")
+    if points.ndim != len(lead) + 2 or points.shape[:-2] != lead or points.shape[-1] != 3:
+        raise ValueError(f"points must be [{'B, ' if lead else ''}N, 3], got {points.shape}")
     if point_mask is not None:
         point_mask = jnp.asarray(point_mask).astype(bool)
         if point_mask.shape != points.shape[:-1]:
-            raise ValueError(f"point_mask must have shape {points.shape[:-1]}, got {point_mask.shape}")
+            raise ValueError(
+                f"point_mask must have shape {points.shape[:-1]}, got {point_mask.shape}"
+            )
     return points, point_mask
+
+
+def _pad_axis(x, size, axis, value):
+    """Pad axis ``axis`` of ``x`` up to ``size`` with ``value``."""
+    widths = [(0, 0)] * x.ndim
+    widths[axis] = (0, size - x.shape[axis])
+    return jnp.pad(x, widths, constant_values=value)
+
+
+def _bucket(n: int, step: int) -> int:
+    """The size ``n`` is padded to: a multiple of ``step``."""
+    return max(step, -(-n // step) * step)
 
 
 def action_report(
@@ -270,8 +286,17 @@ def action_report(
       ``thigh_elevation`` in degrees above horizontal; ``pelvis_height_ratio`` in leg
       lengths) and ``anchor`` (int32 frame). ``success`` is False without a valid frame.
     """
-    joints, mask = _check(joints, mask, ())
+    joints, mask = _check(joints, mask, False)
     points, point_mask = _check_points(points, point_mask, ())
+    # Pad frames and points to a few sizes, so motions and objects of varying sizes reuse
+    # a few compiled programs (the padding is masked out).
+    t = _bucket(joints.shape[0], _FRAME_BUCKET)
+    joints, mask = _pad_axis(joints, t, 0, 0.0), _pad_axis(mask, t, 0, False)
+    if points is not None:
+        n = max(_POINT_BUCKET, 1 << max(points.shape[0] - 1, 0).bit_length())
+        if point_mask is None:
+            point_mask = jnp.ones(points.shape[0], bool)
+        points, point_mask = _pad_axis(points, n, 0, 0.0), _pad_axis(point_mask, n, 0, False)
     sh = jnp.float32(jnp.nan) if surface_height is None else jnp.asarray(surface_height, jnp.float32)
     return _report_jit(
         joints, mask, jnp.int32(action_id(action)), jnp.asarray(bbox_min, jnp.float32),
@@ -305,7 +330,7 @@ def judge_actions(
     Returns:
       the dict of :func:`action_report` with ``[B]`` arrays.
     """
-    joints, mask = _check(joints, mask, ("B, ",))
+    joints, mask = _check(joints, mask, True)
     b = joints.shape[0]
     if isinstance(actions, (jax.Array,)) or hasattr(actions, "dtype"):
         ids = jnp.asarray(actions, jnp.int32)

@@ -92,7 +92,7 @@ def mentioned_objects(room, text: str) -> list[dict]:
 def same_class_others(objects, object_id) -> list[int]:
     """Ids of the objects of ``object_id``'s category other than it: once the target is
     known, the points the ADM's map must leave out (``exclude`` of
-    :meth:`jaxmotion.sample.AffordancePipeline.sample_affordance`); ``[]`` when
+    :meth:`jaxmotion.pipelines.AffordancePipeline.sample_affordance`); ``[]`` when
     ``object_id`` is None or not in ``objects``."""
     cat = next((o["category"] for o in objects if o["id"] == object_id), None)
     if object_id is None or cat is None:

@@ -136,3 +136,22 @@ def test_pipeline_tells_a_target_reading_adm_the_target(target_run):
                      target=tgt)["affordance"]
     np.testing.assert_array_equal(
         a, plain.sample_affordance(ka, x["points"], x["colors"], text, s))
+
+
+def test_amdm_trains_on_maps_of_a_target_reading_adm(target_run, tmp_path):
+    """An AMDM trained on ADM-predicted maps (predicted_fraction > 0) builds the ADM's
+    condition as every other caller does (ADMNet.condition): an ADM that reads a target is
+    told the batch's target, and training runs (it failed without the target channel)."""
+    from jaxmotion.config import load_config
+    from jaxmotion.train import train
+    from jaxmotion.train.tasks import get_task
+
+    _, data, adm_work, _, _ = target_run
+    cfg = load_config("configs/amdm.py", [
+        f"data_dir={data}", "preset=tiny", "steps=2", "log_every=1", "eval_every=2",
+        f"workdir={tmp_path / 'amdm'}", f"adm_workdir={adm_work}", "predicted_fraction=1.0",
+        "adm_sampler_steps=2"])
+    task = get_task(cfg)
+    result = train(cfg, task)
+    assert task.predicted_fraction == 1.0
+    assert result.step == 2 and np.isfinite(result.last_loss)

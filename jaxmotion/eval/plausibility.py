@@ -139,7 +139,8 @@ def _plausibility_one(joints, mask, fps, joint_limit, pelvis_limit):
     teleport = (joint_max > joint_limit) | (jnp.max(speed[:, 0]) > pelvis_limit)
 
     window = mask[3:] & mask[2:-1] & mask[1:-2] & mask[:-3]  # [T-3]
-    third = x[3:] - 3.0 * x[2:-1] + 3.0 * x[1:-2] - x[:-3]  # [T-3, J, 3]
+    second = step[1:] - step[:-1]  # nested differences: exact 0 for still frames in float32
+    third = second[1:] - second[:-1]  # [T-3, J, 3] = x[t+3] - 3 x[t+2] + 3 x[t+1] - x[t]
     jerk = jnp.where(window[:, None], safe_norm(third) * fps**3, 0.0)
     count = jnp.sum(window) * x.shape[1]
     jerk_mean = jnp.sum(jerk) / jnp.maximum(count, 1)

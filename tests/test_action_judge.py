@@ -147,7 +147,7 @@ def test_anchor_frame_and_padding():
     sit = seated([1.22, 1.2], SEAT + 0.17, heading=-np.pi / 2)
     sit_motion = motion(stand, stand, sit, sit)
     rise_motion = sit_motion[::-1]
-    kw = dict(surface_height=SEAT)
+    kw = {"surface_height": SEAT}
     assert bool(judge_action(sit_motion, None, "sit", CHAIR_MIN, CHAIR_MAX, **kw))
     assert not bool(judge_action(sit_motion, None, "stand_up", CHAIR_MIN, CHAIR_MAX, **kw))
     assert bool(judge_action(rise_motion, None, "stand_up", CHAIR_MIN, CHAIR_MAX, **kw))
@@ -185,6 +185,8 @@ def test_batch_and_jit_agree_with_single():
     lo, hi = np.tile(CHAIR_MIN, (5, 1)), np.tile(CHAIR_MAX, (5, 1))
     batch = judge_actions(joints, mask, [a for a, _ in cases], lo, hi, np.stack([pts] * 5))
     assert batch["success"].shape == (5,)
+    by_id = judge_actions(joints, mask, np.array([1, 0, 3, 2, 1]), lo, hi, np.stack([pts] * 5))
+    np.testing.assert_array_equal(by_id["success"], batch["success"])
     jitted = jax.jit(lambda j, m: action_report(j, m, "sit", CHAIR_MIN, CHAIR_MAX, pts))
     for i, (a, m) in enumerate(cases):
         one = action_report(m, mask[i], a, CHAIR_MIN, CHAIR_MAX, pts)
@@ -259,8 +261,15 @@ def test_ground_truth_rates():
                             surface_height=o["surface_height"])))  # fmt: skip
     rates = {a: float(np.mean(h)) for a, h in hits.items()}
     false = {a: float(np.mean(w)) for a, w in wrong.items()}
-    print("\nground truth accepted:", rates, "\nmismatches accepted:", false,
-          "\nother targets accepted:", float(np.mean(other_target)), len(other_target))
+    print(
+        "\nground truth accepted:",
+        rates,
+        "\nmismatches accepted:",
+        false,
+        "\nother targets accepted:",
+        float(np.mean(other_target)),
+        len(other_target),
+    )
     assert min(rates.values()) >= 0.9
     assert max(false.values()) <= 0.05
     assert np.mean(other_target) <= 0.05

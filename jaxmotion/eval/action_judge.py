@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxmotion.eval.skating import FOOT_FLOOR_OFFSETS, FOOT_JOINTS
 from jaxmotion.geometry.skeleton import NUM_JOINTS
@@ -112,7 +113,7 @@ _HIPS, _KNEES, _ANKLES = (1, 2), (4, 5), (7, 8)
 def action_id(action) -> int:
     """Index in :data:`ACTIONS` of ``"walk"``, ``"sit"``, ``"stand_up"`` / ``"stand up"``,
     ``"lie"`` (case-insensitive), or of an int id (checked)."""
-    if isinstance(action, (int,)) and not isinstance(action, bool):
+    if isinstance(action, (int, np.integer)) and not isinstance(action, bool):
         if not 0 <= action < len(ACTIONS):
             raise ValueError(f"action id must be in [0, {len(ACTIONS)}), got {action}")
         return int(action)
@@ -147,12 +148,12 @@ def _pose_report(pose, action, bbox_min, bbox_max, points, point_mask, surface_h
     above = pelvis[2] - surface
 
     torso = _elevation(pose[_NECK] - pelvis)
-    thighs = jnp.mean(_elevation(pose[jnp.array(_KNEES)] - pose[jnp.array(_HIPS)]))
-    legs = jnp.linalg.norm(pose[jnp.array(_KNEES)] - pose[jnp.array(_HIPS)], axis=-1) + jnp.linalg.norm(
-        pose[jnp.array(_ANKLES)] - pose[jnp.array(_KNEES)], axis=-1
+    hips, knees, ankles = pose[jnp.array(_HIPS)], pose[jnp.array(_KNEES)], pose[jnp.array(_ANKLES)]
+    thighs = jnp.mean(_elevation(knees - hips))
+    leg = jnp.mean(
+        jnp.linalg.norm(knees - hips, axis=-1) + jnp.linalg.norm(ankles - knees, axis=-1)
     )
-    leg = jnp.mean(legs)
-    ratio = (pelvis[2] - jnp.mean(pose[jnp.array(_ANKLES), 2])) / jnp.maximum(leg, 1e-6)
+    ratio = (pelvis[2] - jnp.mean(ankles[:, 2])) / jnp.maximum(leg, 1e-6)
     feet = jnp.min(pose[jnp.array(FOOT_JOINTS), 2] - jnp.asarray(FOOT_FLOOR_OFFSETS, jnp.float32))
 
     over = box_xy <= FOOTPRINT_TOLERANCE
@@ -297,7 +298,7 @@ def action_report(
         if point_mask is None:
             point_mask = jnp.ones(points.shape[0], bool)
         points, point_mask = _pad_axis(points, n, 0, 0.0), _pad_axis(point_mask, n, 0, False)
-    sh = jnp.float32(jnp.nan) if surface_height is None else jnp.asarray(surface_height, jnp.float32)
+    sh = jnp.asarray(jnp.nan if surface_height is None else surface_height, jnp.float32)
     return _report_jit(
         joints, mask, jnp.int32(action_id(action)), jnp.asarray(bbox_min, jnp.float32),
         jnp.asarray(bbox_max, jnp.float32), points, point_mask, sh,
@@ -332,8 +333,8 @@ def judge_actions(
     """
     joints, mask = _check(joints, mask, True)
     b = joints.shape[0]
-    if isinstance(actions, (jax.Array,)) or hasattr(actions, "dtype"):
-        ids = jnp.asarray(actions, jnp.int32)
+    if hasattr(actions, "dtype") and np.issubdtype(actions.dtype, np.integer):
+        ids = jnp.asarray(actions, jnp.int32)  # ids, possibly traced
     else:
         ids = jnp.asarray([action_id(a) for a in actions], jnp.int32)
     if ids.shape != (b,):

@@ -70,7 +70,7 @@ PLAUSIBILITY_KEYS: tuple[str, ...] = (
     "valid_frames",
 )
 
-_MIN_FRAMES = 4  # shorter inputs are padded with invalid frames (one code path, no empty axes)
+_FRAME_BUCKET = 16  # frames are padded (masked out) to a multiple of this
 
 
 def plausibility(
@@ -112,10 +112,15 @@ def plausibility(
             mask = mask[None]
         if mask.shape != (b, t):
             want = f"[{t}]" if single else f"[{b}, {t}]"
-            raise ValueError(f"mask must have shape {want}, got {mask.shape[1:] if single else mask.shape}")
-    if t < _MIN_FRAMES:
-        joints = jnp.pad(joints, ((0, 0), (0, _MIN_FRAMES - t), (0, 0), (0, 0)))
-        mask = jnp.pad(mask, ((0, 0), (0, _MIN_FRAMES - t)))
+            raise ValueError(
+                f"mask must have shape {want}, got {mask.shape[1:] if single else mask.shape}"
+            )
+    # Pad frames (masked out) to a multiple of _FRAME_BUCKET: no empty axes for short
+    # motions, and motions of varying lengths reuse a few compiled programs.
+    size = max(_FRAME_BUCKET, -(-t // _FRAME_BUCKET) * _FRAME_BUCKET)
+    if size != t:
+        joints = jnp.pad(joints, ((0, 0), (0, size - t), (0, 0), (0, 0)))
+        mask = jnp.pad(mask, ((0, 0), (0, size - t)))
     out = _plausibility_batch(
         joints,
         mask,

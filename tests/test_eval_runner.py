@@ -58,6 +58,14 @@ def test_ground_truth_affordance_row(tiny_runs):
     assert o["summary"]["goal_distance"] != rep["models"]["adm"]["summary"]["goal_distance"]
     md = format_markdown(rep)
     assert "| oracle | DDIM-2 (ground-truth maps) |" in md
+    # plausibility: per model and for the dataset's own motions (which never teleport)
+    for key in ("teleport", "pelvis_speed_p99", "joint_speed_max", "jerk_mean"):
+        assert np.isfinite(o["summary"][key]["mean"]), key
+    gt = rep["ground_truth"]
+    assert gt["teleport"] == 0.0 and 0.0 < gt["pelvis_speed_p99"] < 3.0
+    assert "**Plausibility**" in md and md.count("| dataset motions |") == 2
+    row = rep["models"]["adm"]["cases"][0]
+    assert len(row["pelvis_speeds"]) == 2 and 0.0 <= row["teleport"] <= 1.0
     assert md.count("| adm | perceiver |") == 1 and "| oracle | perceiver |" not in md
 
 

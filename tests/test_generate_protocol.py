@@ -7,7 +7,6 @@ import jax
 import numpy as np
 import pytest
 
-import jaxmotion.scene.demo
 from jaxmotion.eval.runner import (ModelSpec, evaluate, format_markdown, load_eval_cases,
                                    score_cases)
 
@@ -269,9 +268,9 @@ def _generate_protocol_only(tiny_runs, **option):
 
 def _demo_chair(root):
     """The demo room, its chair and fast `generate` settings with the tiny checkpoints."""
-    import jaxmotion
+    from jaxmotion.scene.demo import demo_scene
 
-    scene = jaxmotion.scene.demo.demo_scene()
+    scene = demo_scene()
     chair = next(o for o in scene.objects if o["category"] == "chair")
     fast = dict(checkpoints=(str(root / "adm"), str(root / "amdm")), fit=False, steps=2,
                 adm_steps=2, seed=1)

@@ -31,11 +31,13 @@ the pelvis): sinking into a seat is for the penetration metrics, not this judge.
 Thresholds come from the procedural character of the synthetic world
 (:mod:`jaxmotion.motion.seating`, :mod:`jaxmotion.motion.segments`,
 :mod:`jaxmotion.motion.actions`) and from its motions measured at the anchor frame
-(48 ground-truth samples of ``sample_room`` / ``sample_task`` / ``synthesize``): seated
-pelvis 0.15–0.19 m over the seat, torso 6–16° from vertical, pelvis over the ankles
-0.65–0.97 leg lengths, thighs 1–42° below horizontal; lying torso within 4° of
-horizontal, pelvis 0.09–0.13 m over the mattress; standing 1.10 leg lengths, thighs
-~79° down, pelvis 0.11–0.19 m from the box. Each constant's comment says why.
+(200 ground-truth samples of ``sample_room`` / ``sample_task`` / ``synthesize``, 50 per
+action; seats: chair, armchair, sofa, bed, stool, toilet): seated pelvis 0.16–0.20 m
+over the seat surface (as low as 0.004 m over the point estimate where a pillow is
+beside the pelvis), torso 5–17° from vertical, pelvis over the ankles 0.60–0.97 leg
+lengths, thighs 42° below to 5° above horizontal; lying torso within 4° of horizontal,
+pelvis 0.09–0.13 m over the mattress; standing 1.09–1.12 leg lengths, thighs 77–81°
+down, pelvis 0.10–0.19 m from the box. Each constant's comment says why.
 
 Pure jax.numpy for one motion (``jit``-compatible; ``action`` strings are static),
 lifted with ``vmap`` in :func:`judge_actions` (per-motion actions, boxes, points).
@@ -76,14 +78,14 @@ ACTIONS: tuple[str, ...] = ("walk", "sit", "stand_up", "lie")
 # body perch on the very edge, anything farther out is not over the seat.
 FOOTPRINT_TOLERANCE = 0.10
 # Pelvis joint over the seat surface, m: the hips sit 6.5-9.5 cm over it and the SMPL-X
-# pelvis joint ~9 cm above the hips (measured 0.15-0.19 m); above 0.35 m it hovers.
+# pelvis joint ~9 cm above the hips (measured 0.16-0.20 m); above 0.35 m it hovers.
 SEAT_HEIGHT_BAND = (0.0, 0.35)
-# Torso (pelvis -> neck) tilt from vertical, degrees: seated 6-16 deg (pelvis reclined
+# Torso (pelvis -> neck) tilt from vertical, degrees: seated 5-17 deg (pelvis reclined
 # 6-14 deg, spine flexed 3-11 deg), walking lean <= 7 deg; 35 deg is a marked slouch.
 UPRIGHT_MAX_TILT = 35.0
 # (pelvis z - mean ankle z) / leg length (hip->knee + knee->ankle, measured on the pose).
-# Standing: 1.10 (straight legs, the pelvis joint ~0.1 leg above the hips); seated
-# 0.65-0.97 (up to 45 deg sloping thighs on high seats). 1.03 ~ 45 deg of knee flexion.
+# Standing: 1.09-1.12 (straight legs, the pelvis joint ~0.1 leg above the hips); seated
+# 0.60-0.97 (up to 45 deg sloping thighs on high seats). 1.03 ~ 45 deg of knee flexion.
 KNEES_BENT_MAX_RATIO = 1.03
 STANDING_MIN_RATIO = 1.03
 # Thigh (hip -> knee) elevation above horizontal, degrees: seated -45..+7 (seating.py),

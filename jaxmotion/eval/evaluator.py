@@ -24,7 +24,6 @@ heading-invariant), not HumanML3D's 263-d features.
 from __future__ import annotations
 
 import hashlib
-import itertools
 import json
 import warnings
 from pathlib import Path
@@ -38,8 +37,7 @@ from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.data.format import load_manifest
 from jaxmotion.eval.text_motion_metrics import (diversity, fid, multimodal_distance,
                                                 multimodality, r_precision)
-from jaxmotion.models.evaluator import (EVALUATOR_VERSION, EvaluatorConfig, TextMotionEvaluator,
-                                        canonical_motion_features, contrastive_loss)
+from jaxmotion.models.evaluator import (EVALUATOR_VERSION, EvaluatorConfig, TextMotionEvaluator)
 
 __all__ = ["EVALUATOR_VERSION", "Evaluator", "load_evaluator", "manifest_sha256",
            "text_motion_scores"]

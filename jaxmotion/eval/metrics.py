@@ -9,6 +9,10 @@ The metrics of HUMANISE, "Move as You Say, Interact as You Can" and Guo et al.
 - joints-only fast variants (:mod:`.joint_spheres`): :func:`joint_sphere_sdf`,
   :func:`joints_physical_metrics`;
 - motion: :func:`apd` (here), :func:`foot_skating` (:mod:`.skating`);
+- plausibility (:mod:`.plausibility`): :func:`plausibility` (top pelvis / joint speeds,
+  teleports, jerk, floor penetration, skating, bone-length spread per motion) and
+  :func:`summarize_plausibility`; the geometric action judge (:mod:`.action_judge`):
+  :func:`judge_action` (seated / lying / standing near the target at the anchor frame);
 - grounding (:mod:`.grounding`): :func:`affordance_grounding`,
   :func:`grounding_accuracy`;
 - text–motion, host-side numpy (:mod:`.text_motion_metrics`): :func:`fid`,
@@ -52,6 +56,14 @@ from jaxmotion.eval.joint_spheres import (
     joints_goal_distance,
     joints_physical_metrics,
 )
+from jaxmotion.eval.action_judge import action_id, action_report, judge_action, judge_actions
+from jaxmotion.eval.plausibility import (
+    PLAUSIBILITY_KEYS,
+    TELEPORT_JOINT_SPEED,
+    TELEPORT_PELVIS_SPEED,
+    plausibility,
+    summarize_plausibility,
+)
 from jaxmotion.eval.skating import FOOT_FLOOR_OFFSETS, FOOT_JOINTS, foot_skating
 from jaxmotion.eval.text_motion_metrics import (
     diversity,
@@ -64,6 +76,8 @@ from jaxmotion.eval.text_motion_metrics import (
 )
 
 __all__ = [
+    "PLAUSIBILITY_KEYS", "TELEPORT_JOINT_SPEED", "TELEPORT_PELVIS_SPEED", "action_id",
+    "action_report", "judge_action", "judge_actions", "plausibility", "summarize_plausibility",
     "CONTACT_THRESHOLD",
     "FOOT_FLOOR_OFFSETS",
     "FOOT_JOINTS",

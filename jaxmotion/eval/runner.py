@@ -54,6 +54,10 @@ from jaxmotion.options import GROUNDINGS, check_candidates, check_consistency
 __all__ = ["ModelSpec", "evaluate", "format_markdown", "parse_model", "write_report"]
 
 PHYSICAL = ("goal_distance", "contact", "non_collision", "apd", "skating")
+#: Per-case plausibility columns (means over the case's K motions; jaxmotion.eval.plausibility)
+#: and, per replication, the percentiles over every motion (``pelvis_speed_p99``).
+PLAUSIBILITY = ("teleport", "pelvis_speed_max", "joint_speed_max", "jerk_mean",
+                "floor_penetration")
 GROUNDING = ("min_dist", "pelvis_dist", "all_dist", "success@0.1", "success@0.3", "success@0.5")
 TEXT_MOTION = ("fid", "r_precision_top1", "r_precision_top2", "r_precision_top3",
                "multimodal_dist", "diversity", "multimodality")
@@ -231,10 +235,13 @@ def score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: l
     import jax
 
     from jaxmotion.eval.metrics import affordance_grounding_from_map
+    from jaxmotion.eval.plausibility import plausibility
 
     rows = []
     for ci, c in enumerate(cases):
         mask = c["mask"]
+        plaus = jax.device_get(plausibility(
+            joints[ci], np.broadcast_to(mask, joints[ci].shape[:2]), fps=fps))
         valid = np.flatnonzero(mask)
         anchor = int(valid[0] if c["action"] == "stand_up" else valid[-1])
         if body:
@@ -250,6 +257,8 @@ def score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: l
         m = jax.device_get(phys(c["points"], goal_points, goal_mask, joints[ci], mask, anchor,
                                 verts, normals))
         row = {k: float(np.mean(v)) for k, v in m.items()}
+        row.update({k: float(np.mean(plaus[k])) for k in PLAUSIBILITY})
+        row["pelvis_speeds"] = [float(v) for v in np.atleast_1d(plaus["pelvis_speed_max"])]
         # the paper's definition: the target mask holds every point of the target's class
         class_mask = c.get("target_class_mask", c["target_mask"])
         outside = "goal_points" in c and not c["target_mask"].any()
@@ -266,6 +275,15 @@ def score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: l
         if bar is not None:
             bar.update(1)
     return rows
+
+
+def _speed_percentiles(rows) -> dict:
+    """The 50th / 99th percentile, over every motion of ``rows``, of its top pelvis speed."""
+    speeds = np.array([v for row in rows for v in row.get("pelvis_speeds", ())], np.float64)
+    if not len(speeds):
+        return {}
+    return {"pelvis_speed_p50": float(np.percentile(speeds, 50)),
+            "pelvis_speed_p99": float(np.percentile(speeds, 99))}
 
 
 def mean_ci95(values) -> dict:
@@ -307,7 +325,7 @@ def evaluate(
 
     from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
     from jaxmotion.diffusion import SamplerSpec
-    from jaxmotion.data.cases import case_inputs, load_cases
+    from jaxmotion.data.cases import case_inputs
     from jaxmotion.scene.instructions import anchor_is_first
     from jaxmotion.text import load_text_encoder
 
@@ -400,8 +418,9 @@ def evaluate(
             grounded = two_stage and not oracle  # ground-truth maps are not scored
             per_case = score_cases(cases, joints, affs if grounded else None, phys, body, fps,
                                     fit_errors, bar, vertex_stride)
-            keys = sorted({k for row in per_case for k in row})
+            keys = sorted({k for row in per_case for k in row} - {"pelvis_speeds"})
             rep = {k: float(np.nanmean([row.get(k, np.nan) for row in per_case])) for k in keys}
+            rep.update(_speed_percentiles(per_case))
             case_rows += [_case_row(spec.name, r, ci, cases[ci], row,
                                     None if regions is None else regions[ci])
                           for ci, row in enumerate(per_case)]
@@ -439,7 +458,9 @@ def evaluate(
                             first_regions)
         gt = np.stack([c["gt"] for c in cases])[:, None]
         rows = score_cases(cases, gt, None, phys, body, fps, [], None, vertex_stride)
-        report["ground_truth"] = {k: float(np.nanmean([r[k] for r in rows])) for k in rows[0]}
+        report["ground_truth"] = {k: float(np.nanmean([r[k] for r in rows])) for k in rows[0]
+                                  if k != "pelvis_speeds"}
+        report["ground_truth"].update(_speed_percentiles(rows))
     bar.close()
     return report
 
@@ -553,6 +574,23 @@ def format_markdown(report: dict) -> str:
             cells += [_cell(s.get(k)) for k in ("fid", "r_precision_top3", "multimodal_dist",
                                                "diversity", "multimodality")]
         lines.append("| " + " | ".join(cells) + " |")
+    head = ["method", "sampler", "teleport (%) ↓", "pelvis speed p50 (m/s)",
+            "pelvis speed p99 (m/s) ↓", "top joint speed (m/s) ↓", "jerk (m/s³) ↓",
+            "floor penetration (cm) ↓"]
+    lines += ["", "**Plausibility** (a teleport: a joint faster than 9 m/s or the pelvis faster "
+              "than 3 m/s between two frames)", "", "| " + " | ".join(head) + " |",
+              "|" + "---|" * len(head)]
+    plaus_keys = (("teleport", 100, 1), ("pelvis_speed_p50", 1, 2), ("pelvis_speed_p99", 1, 2),
+                  ("joint_speed_max", 1, 2), ("jerk_mean", 1, 1), ("floor_penetration", 100, 2))
+    if "ground_truth" in report:
+        g = report["ground_truth"]
+        lines.append("| " + " | ".join(["dataset motions", "–"] + [
+            f"{g[k] * sc:.{d}f}" if g.get(k) is not None else "–"
+            for k, sc, d in plaus_keys]) + " |")
+    for name, m in models.items():
+        s = m["summary"]
+        lines.append("| " + " | ".join([name, m["sampler"]] + [
+            _cell(s.get(k), sc, d) for k, sc, d in plaus_keys]) + " |")
     grounded = {n: m for n, m in models.items()
                 if m["two_stage"] and m.get("affordance", "adm") == "adm"}
     if grounded:

@@ -31,7 +31,8 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from jaxmotion.config import config_from_dict, config_to_dict
+from jaxmotion.config import config_to_dict
+from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.data.crop import CropSpec
 from jaxmotion.data.format import DatasetError
 from jaxmotion.data.loader import Dataset, Stats, compute_stats, load_stats, save_stats
@@ -85,7 +86,7 @@ class DataTask:
         if not hasattr(self, "_encoder"):
             from jaxmotion.text import EmbeddingCache, load_text_encoder
 
-            self._encoder = load_text_encoder("minilm")
+            self._encoder = load_text_encoder(TEXT_ENCODER)
             self._cache = EmbeddingCache(self._cache_dir(cfg, "text", "text_cache"))
         return self._encoder, self._cache
 

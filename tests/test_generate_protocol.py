@@ -227,7 +227,7 @@ def test_best_motion_keeps_the_motion_that_reaches_the_target(tiny_runs):
     np.testing.assert_allclose(motions[:, 0], first, atol=2e-3)
     kb = jax.random.split(key, 2)
     for b in range(2):
-        one = np.asarray(pipe._motion_one(jax.random.fold_in(kb[b], 1), pts[b], aff[b],
+        one = np.asarray(pipe.motion_one(jax.random.fold_in(kb[b], 1), pts[b], aff[b],
                                           jax.tree.map(lambda a: a[b], emb), mask[b], spec))
         np.testing.assert_allclose(motions[b, 1], one, atol=2e-3)
     anchor_first = np.array([False, True])

@@ -5,8 +5,10 @@ checkpoints before the package was restructured into stages (grounding / pipelin
 the restructuring changed where code lives, not what it computes. Each case is one way of
 finding the target: the only object of its class (demo room), the scene graph's relation,
 ``object_id``, the ADM among several candidates, and the room's tiles (no object named).
-Regenerate the file only for a deliberate change of behaviour, and say so in
-``docs/results.md``.
+The joints were recorded by the old code (commit 34eaf24) under the XLA flags of
+``tests/conftest.py`` (``--xla_cpu_multi_thread_eigen=false``: threading changes the order of
+float sums, so the flags are part of "the same computation"). Regenerate the file only for a
+deliberate change of behaviour, and say so in ``docs/results.md``.
 """
 
 from __future__ import annotations

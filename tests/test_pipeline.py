@@ -161,7 +161,7 @@ def test_consistency_guidance_in_the_pipeline(runs, monkeypatch):
         return make(points, affordance, frame_mask, mean, std, cfg, sigma)
 
     monkeypatch.setattr(ag, "make_x0_refiner", spy)
-    guided = pipe._motion_one(key, pts[1], maps[1], emb[1], mask[1],
+    guided = pipe.motion_one(key, pts[1], maps[1], emb[1], mask[1],
                               SamplerSpec("ddim", 3, consistency=0.5))
     (p, a, m, mean, std, cfg, sigma), = seen
     np.testing.assert_array_equal(p, pts[1])
@@ -170,7 +170,7 @@ def test_consistency_guidance_in_the_pipeline(runs, monkeypatch):
     np.testing.assert_array_equal(mean, pipe.m_mean)
     np.testing.assert_array_equal(std, pipe.m_std)
     assert (cfg.strength, sigma) == (0.5, pipe.sigma)
-    plain = pipe._motion_one(key, pts[1], maps[1], emb[1], mask[1], SamplerSpec("ddim", 3))
+    plain = pipe.motion_one(key, pts[1], maps[1], emb[1], mask[1], SamplerSpec("ddim", 3))
     assert len(seen) == 1 and not np.allclose(guided, plain, atol=1e-5)
     pipe.amdm.cfg = dataclasses.replace(pipe.amdm.cfg, scene_input="rgb")
     with pytest.raises(ValueError, match="consistency guidance needs an AMDM that reads"):

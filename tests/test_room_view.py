@@ -226,6 +226,7 @@ def test_room_view_eval_and_probe(room_runs):
 def test_room_view_generate(room_runs, tmp_path, monkeypatch):
     import jaxmotion
     import jaxmotion.generation as G
+    from jaxmotion.export.folder import scene_heat
 
     root, _, work, _, _ = room_runs
     monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "xla"))
@@ -239,7 +240,7 @@ def test_room_view_generate(room_runs, tmp_path, monkeypatch):
     want = np.asarray(carry_field(res.crop_xyz, res.view_xyz, res.view_affordance[0]))
     np.testing.assert_allclose(res.affordance[0], want, atol=1e-4)
     assert "adm" in res.timings and res.grounding == "class"  # the demo room has one chair
-    heat = res._scene_heat(res.scene.xyz[:500])
+    heat = scene_heat(res, res.scene.xyz[:500])
     assert heat.shape == (500,) and (heat > 0).any()
     again = jaxmotion.generate("demo", "sit on the chair next to the table", **kw)
     np.testing.assert_array_equal(again.joints, res.joints)

@@ -258,9 +258,9 @@ def test_dataset_cache_dir_falls_back_to_workdir_when_read_only(tmp_path, monkey
     from jaxmotion.train.tasks import DataTask
 
     cfg = load_config("configs/adm.py", [f"data_dir={data}", f"workdir={work}"])
-    assert DataTask._cache_dir(cfg, "text", "text_cache") == work / "text_cache"
+    assert DataTask.cache_dir(cfg, "text", "text_cache") == work / "text_cache"
     ecfg = load_config("configs/evaluator.py", [f"data_dir={data}", f"workdir={work}"])
-    out = EvaluatorTask()._prepare(ecfg, {"joints": np.zeros((1, 4, 22, 3), np.float32),
+    out = EvaluatorTask().prepare(ecfg, {"joints": np.zeros((1, 4, 22, 3), np.float32),
                                           "mask": np.ones((1, 4), bool), "text": ["a person sits"]})
     assert out["text_emb"].shape == (1, 384)
     assert len(list((work / "text_cache").glob("*.npz"))) == 1  # written where the tasks look

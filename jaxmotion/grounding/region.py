@@ -34,13 +34,17 @@ class AdmChooser:
     """What region choice needs to run a crop-view ADM: ``get_pipe()`` returns the pipeline
     (called only when the ADM runs), ``text`` its text condition for one text (batch of one),
     ``key()`` the ADM's PRNG key (called only when the ADM runs), ``sampler`` its
-    :class:`~jaxmotion.diffusion.SamplerSpec`, ``seed`` the seed of the crops' point sampling."""
+    :class:`~jaxmotion.diffusion.SamplerSpec`, ``seed`` the seed of the crops' point sampling;
+    ``programs``: ``(folder, fingerprint)`` to keep the ADM's traced program on disk
+    (:func:`jaxmotion.compiled.cached_call`; the fingerprint names the ADM and the sampler), so
+    a new process skips loading and tracing it; None runs it directly."""
 
     get_pipe: Callable[[], Any]
     text: Any
     key: Callable[[], Any]
     sampler: Any
     seed: int
+    programs: tuple | None = None
 
 
 def _crops(room, centres, spec, seed: int, tag: int):
@@ -58,13 +62,34 @@ def _crops(room, centres, spec, seed: int, tag: int):
     return out
 
 
-def _adm_maps(get_pipe, crops, emb, key, sampler) -> np.ndarray:
+def _adm_maps(adm: AdmChooser, crops) -> np.ndarray:
+    """The ADM's maps ``[len(crops), N, 6]`` on ``crops``. With ``adm.programs`` the batch is
+    padded to a power of two (repeating the last crop; example i keeps its key, since
+    ``split`` is prefix-consistent) so that a few traced programs on disk serve every room."""
     import jax
 
     b = len(crops)
-    return np.asarray(jax.device_get(get_pipe().sample_affordance(
-        key, np.stack([c[2] for c in crops]), np.stack([c[3] for c in crops]),
-        jax.tree.map(lambda a: np.broadcast_to(a[0], (b, *a.shape[1:])), emb), sampler)))
+    size = b if adm.programs is None else 1 << max(0, b - 1).bit_length()
+    rows = [crops[min(i, b - 1)] for i in range(size)]
+    args = (np.asarray(jax.random.key_data(adm.key())), np.stack([c[2] for c in rows]),
+            np.stack([c[3] for c in rows]),
+            jax.tree.map(lambda a: np.ascontiguousarray(
+                np.broadcast_to(a[0], (size, *a.shape[1:]))), adm.text))
+    sampler = adm.sampler
+
+    def build():
+        pipe = adm.get_pipe()
+        return lambda kd, p, c, e: pipe.sample_affordance(jax.random.wrap_key_data(kd), p, c, e,
+                                                          sampler)
+
+    if adm.programs is None:
+        maps = build()(*args)
+    else:
+        from jaxmotion.compiled import cached_call
+
+        folder, fingerprint = adm.programs
+        maps = cached_call(folder, "adm_region", fingerprint, build, args)
+    return np.asarray(jax.device_get(maps))[:b]
 
 
 def lit(maps, instance, object_id) -> float:
@@ -112,7 +137,7 @@ def choose_region(adm: AdmChooser, room, candidates, spec, lo, hi):
         if len(candidates) == 1:
             return centres[0], candidates[0]["id"]
         crops = _crops(room, centres, spec, adm.seed, 2)
-        maps = _adm_maps(adm.get_pipe, crops, adm.text, adm.key(), adm.sampler)
+        maps = _adm_maps(adm, crops)
         scores = [lit(a, room.instance[pick], candidates[i]["id"])
                   for (i, pick, *_), a in zip(crops, maps, strict=True)]
         i = crops[int(np.argmax(scores))][0]
@@ -121,7 +146,7 @@ def choose_region(adm: AdmChooser, room, candidates, spec, lo, hi):
     if len(tiles) == 1:
         return tiles[0], None
     crops = _crops(room, tiles, spec, adm.seed, 3)
-    maps = _adm_maps(adm.get_pipe, crops, adm.text, adm.key(), adm.sampler)
+    maps = _adm_maps(adm, crops)
     scores = [float(np.sort(a[:, 0])[-32:].mean()) for a in maps]
     return np.asarray(tiles[crops[int(np.argmax(scores))][0]]), None
 

@@ -193,15 +193,19 @@ class AffordancePipeline:
                              "embedding array")
         return text
 
-    def _affordance_one(self, key, points, colors, text, spec: SamplerSpec, exclude=None,
-                        target=None):
+    def affordance_one(self, key, points, colors, text, spec: SamplerSpec, exclude=None,
+                       target=None):
+        """One ADM map ``[N, 6]`` for one example (unbatched; :meth:`sample_affordance` is its
+        jitted, vmapped form)."""
         return adm_map_one(self.adm_net, self.adm_schedule, (self.a_mean, self.a_std), key,
                            points, colors, self._check_text(text), spec, exclude, target)
 
-    def _motion_one(self, key, points, scene_feat, text, mask, spec: SamplerSpec):
+    def motion_one(self, key, points, scene_feat, text, mask, spec: SamplerSpec):
+        """One motion ``[T, 22, 3]`` (crop frame) for one example (unbatched;
+        :meth:`sample_motion` is its jitted, vmapped form)."""
         return self._motion_draw(points, scene_feat, text, mask, spec)(key)
 
-    def _motions_one(self, keys, points, scene_feat, text, mask, spec: SamplerSpec):
+    def motions_one(self, keys, points, scene_feat, text, mask, spec: SamplerSpec):
         """One motion per key of ``keys`` ``[M]``: ``[M, T, 22, 3]``; the scene and text are
         encoded once and shared by the M draws."""
         return jax.vmap(self._motion_draw(points, scene_feat, text, mask, spec))(keys)
@@ -252,12 +256,12 @@ class AffordancePipeline:
     @functools.cached_property
     def _jitted(self):
         def aff(spec, keys, points, colors, text, exclude, target):  # both may be None
-            return jax.vmap(lambda k, p, c, e, x, g: self._affordance_one(k, p, c, e, spec, x,
-                                                                          g))(
+            return jax.vmap(lambda k, p, c, e, x, g: self.affordance_one(k, p, c, e, spec, x,
+                                                                         g))(
                 keys, points, colors, text, exclude, target)
 
         def mot(spec, keys, points, feats, text, mask):
-            return jax.vmap(lambda k, p, f, e, m: self._motion_one(k, p, f, e, m, spec))(
+            return jax.vmap(lambda k, p, f, e, m: self.motion_one(k, p, f, e, m, spec))(
                 keys, points, feats, text, mask)
 
         def affs(spec, keys, points, colors, text, exclude, target):  # keys [B, C]
@@ -266,7 +270,7 @@ class AffordancePipeline:
                 self._check_text(e), spec, x, g))(keys, points, colors, text, exclude, target)
 
         def mots(spec, keys, points, feats, text, mask):  # keys [B, M]
-            return jax.vmap(lambda k, p, f, e, m: self._motions_one(k, p, f, e, m, spec))(
+            return jax.vmap(lambda k, p, f, e, m: self.motions_one(k, p, f, e, m, spec))(
                 keys, points, feats, text, mask)
 
         return tuple(jax.jit(f, static_argnums=0) for f in (aff, mot, affs, mots))

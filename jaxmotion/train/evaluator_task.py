@@ -63,7 +63,7 @@ class EvaluatorTask:
         return MotionTextDataset(cfg.data_dir, split, max_frames=cfg.max_frames,
                                  max_samples=cfg.max_samples if split == "train" else None)
 
-    def _prepare(self, cfg, raw: dict) -> dict:
+    def prepare(self, cfg, raw: dict) -> dict:
         if not hasattr(self, "_cache"):
             from jaxmotion.text import EmbeddingCache, dataset_cache_dir, load_text_encoder
 
@@ -93,7 +93,7 @@ class EvaluatorTask:
 
     def train_batches(self, cfg, start_step: int):
         ds = self._dataset(cfg, "train")
-        return (self._prepare(cfg, b) for b in ds.iterate(cfg.batch_size, cfg.seed,
+        return (self.prepare(cfg, b) for b in ds.iterate(cfg.batch_size, cfg.seed,
                                                           start_step=start_step))
 
     def val_batches(self, cfg) -> list[dict]:
@@ -106,7 +106,7 @@ class EvaluatorTask:
         if bs < 2:  # a contrastive batch needs a mismatched pair
             return []
         it = ds.iterate(bs, cfg.seed + 1, prefetch=0)
-        return [self._prepare(cfg, b) for b in itertools.islice(it, cfg.eval_batches)]
+        return [self.prepare(cfg, b) for b in itertools.islice(it, cfg.eval_batches)]
 
     def loss(self, model: TextMotionEvaluator, batch: dict, key: jax.Array, *, train: bool):
         del key  # dropout draws from the model's streams, re-keyed per step by the loop

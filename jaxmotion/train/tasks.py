@@ -39,6 +39,7 @@ from jaxmotion.data.loader import Dataset, Stats, compute_stats, load_stats, sav
 from jaxmotion.models.frozen import ADMNet, load_adm, load_backbone
 from jaxmotion.models.weights import flatten_state
 from jaxmotion.train.evaluator_task import EvaluatorTask
+from jaxmotion.train.recognizer_task import RecognizerTask
 
 __all__ = ["TASKS", "ADMTask", "AMDMTask", "SegmentationTask", "get_task"]
 
@@ -75,7 +76,7 @@ class DataTask:
         return 0
 
     @staticmethod
-    def _cache_dir(cfg, name: str, fallback: str) -> Path:
+    def cache_dir(cfg, name: str, fallback: str) -> Path:
         """``<data_dir>/.cache/<name>``, or ``<workdir>/<fallback>`` when the dataset is
         read-only (:func:`jaxmotion.text.dataset_cache_dir`)."""
         from jaxmotion.text.cache import dataset_cache_dir
@@ -87,17 +88,17 @@ class DataTask:
             from jaxmotion.text import EmbeddingCache, load_text_encoder
 
             self._encoder = load_text_encoder(TEXT_ENCODER)
-            self._cache = EmbeddingCache(self._cache_dir(cfg, "text", "text_cache"))
+            self._cache = EmbeddingCache(self.cache_dir(cfg, "text", "text_cache"))
         return self._encoder, self._cache
 
     def _token_cache(self, cfg):
         if not hasattr(self, "_tokens"):
             from jaxmotion.text import TokenCache
 
-            self._tokens = TokenCache(self._cache_dir(cfg, "text-tokens", "text_token_cache"))
+            self._tokens = TokenCache(self.cache_dir(cfg, "text-tokens", "text_token_cache"))
         return self._tokens
 
-    def _prepare(self, cfg, raw: dict) -> dict:
+    def prepare(self, cfg, raw: dict) -> dict:
         out = {k: v for k, v in raw.items() if isinstance(v, np.ndarray)}
         if self.needs_text:
             encoder, cache = self._text(cfg)
@@ -110,7 +111,7 @@ class DataTask:
 
     def train_batches(self, cfg, start_step: int):
         ds = _dataset(cfg, "train")
-        return (self._prepare(cfg, b) for b in ds.iterate(
+        return (self.prepare(cfg, b) for b in ds.iterate(
             cfg.batch_size, cfg.seed, start_step=start_step,
             workers=int(getattr(cfg, "loader_workers", 0))))
 
@@ -124,7 +125,7 @@ class DataTask:
         if bs == 0:
             return []
         it = ds.iterate(bs, cfg.seed + 1, prefetch=0)
-        return [self._prepare(cfg, b) for b in itertools.islice(it, cfg.eval_batches)]
+        return [self.prepare(cfg, b) for b in itertools.islice(it, cfg.eval_batches)]
 
 
 # --------------------------------------------------------------------------- segmentation
@@ -217,7 +218,7 @@ class ADMTask(DataTask):
                    ("points", "colors", "target_mask", "target_class_mask")}
             raw["valid"] = np.arange(bs) < len(part)
             raw["text"] = [c["text"] for c in rows]
-            batches.append(self._prepare(cfg, raw))
+            batches.append(self.prepare(cfg, raw))
         return batches
 
     def probe(self, model, batch, key) -> dict:
@@ -321,6 +322,11 @@ class AMDMTask(DataTask):
         self.m_mean, self.m_std = jnp.asarray(st["motion_mean"]), jnp.asarray(st["motion_std"])
         self.a_mean = jnp.asarray(st["affordance_mean"])
         self.a_std = jnp.asarray(st["affordance_std"])
+        self.velocity_weight = float(getattr(cfg, "velocity_weight", 0.0))
+        self.acceleration_weight = float(getattr(cfg, "acceleration_weight", 0.0))
+        if (self.velocity_weight or self.acceleration_weight) and cfg.model.motion_dim != 66:
+            raise ValueError("velocity_weight / acceleration_weight need the 66-d joint-position "
+                             f"features (model.motion_dim=66), got {cfg.model.motion_dim}")
         self.predicted_fraction = float(cfg.predicted_fraction)
         self.adm_steps = int(cfg.adm_sampler_steps)
         adm_net = None
@@ -339,7 +345,32 @@ class AMDMTask(DataTask):
                                  "ground-truth affordance only)")
             adm_net, self.adm_schedule, _ = load_adm(cfg.adm_workdir)
             self.adm_text_tokens = int(adm_net.adm.cfg.text_tokens)
-        return AMDMNet(AMDM(cfg.model, rngs=rngs), adm_net)
+        amdm = AMDM(cfg.model, rngs=rngs)
+        if getattr(cfg, "init_from", ""):
+            self._init_amdm(amdm, cfg)
+        return AMDMNet(amdm, adm_net)
+
+    def _init_amdm(self, amdm, cfg) -> None:
+        """Start ``amdm`` from another AMDM's weights (``cfg.init_from``), with its
+        normalisation statistics (the same function, whatever this dataset's statistics)."""
+        from jaxmotion.models.weights import apply_weights, load_weights, weights_path
+
+        path = weights_path(cfg.init_from)
+        tensors, saved = load_weights(path)
+        if saved.get("task") != "amdm":
+            raise ValueError(f"init_from={cfg.init_from}: {path} is a {saved.get('task')!r} "
+                             "checkpoint, not an AMDM one")
+        mine = config_to_dict(cfg.model)
+        diff = [f"{k} ({saved['model'].get(k)!r} vs {mine[k]!r})" for k in sorted(mine)
+                if saved["model"].get(k, mine[k]) != mine[k]]
+        if diff:
+            raise ValueError(f"init_from={cfg.init_from}: its model config differs in "
+                             f"{', '.join(diff)}; pass the same model.* settings")
+        apply_weights(amdm, tensors, prefix="amdm/", source=str(path))
+        for name in ("motion_mean", "motion_std", "affordance_mean", "affordance_std"):
+            short = {"motion_mean": "m_mean", "motion_std": "m_std",
+                     "affordance_mean": "a_mean", "affordance_std": "a_std"}[name]
+            setattr(self, short, jnp.asarray(tensors[f"stats/{name}"]))
 
     def export_tensors(self) -> dict:
         return {"stats/motion_mean": self.m_mean, "stats/motion_std": self.m_std,
@@ -388,12 +419,29 @@ class AMDMTask(DataTask):
         def denoise(x, t, c):
             return model.amdm(x, t, c, deterministic=not train)
 
-        loss = diffusion_loss(k_loss, denoise, self.schedule, x0, cond, mask, cond_drop_prob=0.0)
-        return loss, {}
+        loss, aux = diffusion_loss(k_loss, denoise, self.schedule, x0, cond, mask,
+                                   cond_drop_prob=0.0, return_aux=True)
+        if not (self.velocity_weight or self.acceleration_weight):
+            return loss, {}
+        from jaxmotion.constants import SCENE_FPS
+        from jaxmotion.diffusion.geometric_losses import acceleration_loss, velocity_loss
+
+        def metres(x):  # z-scored absolute joint positions -> metres (the mean cancels)
+            return (x * self.m_std).reshape(x.shape[0], x.shape[1], -1, 3)
+
+        pred, true = metres(aux["x0_hat"]), metres(x0)
+        terms = {"x0": loss}
+        if self.velocity_weight:
+            terms["velocity"] = velocity_loss(pred, true, mask, SCENE_FPS)
+            loss = loss + self.velocity_weight * terms["velocity"]
+        if self.acceleration_weight:
+            terms["acceleration"] = acceleration_loss(pred, true, mask, SCENE_FPS)
+            loss = loss + self.acceleration_weight * terms["acceleration"]
+        return loss, terms
 
 
 TASKS = {"segmentation": SegmentationTask, "adm": ADMTask, "amdm": AMDMTask,
-         "evaluator": EvaluatorTask}
+         "evaluator": EvaluatorTask, "recognizer": RecognizerTask}
 
 
 def get_task(cfg):

@@ -25,5 +25,5 @@ t0 = time.time()
 cfg = load_config("configs/adm.py", [f"data_dir={root}", f"model.text_tokens={tokens}"])
 task = get_task(cfg)
 for lo in range(0, len(texts), 4096):
-    task._prepare(cfg, {"text": texts[lo:lo + 4096]})  # the task's text path fills both caches
+    task.prepare(cfg, {"text": texts[lo:lo + 4096]})  # the task's text path fills both caches
 print(f"encoded {len(texts)} texts in {time.time() - t0:.1f} s", flush=True)

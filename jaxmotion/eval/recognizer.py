@@ -1,0 +1,192 @@
+"""The trained action recognizer: loading it, and action accuracy as the object-centric paper
+measures it (Cen et al. 2024): the action recognised in each motion against the action its
+instruction asks for.
+
+Train one on any dataset in the sample schema (network and loss:
+:mod:`jaxmotion.models.recognizer`; training task: :mod:`jaxmotion.train.recognizer_task`)::
+
+    python -m jaxmotion.train --config configs/recognizer.py data_dir=DIR workdir=runs/recognizer
+
+then score motions::
+
+    rec = load_recognizer("runs/recognizer")
+    acc = action_accuracy(rec, joints, mask, ["sit", "walk", ...])
+
+The accuracy of the same recognizer on the dataset's own test motions is the ceiling row of
+the table: a generated motion cannot be recognised better than real ones.
+
+Versioning: ``model.safetensors`` carries ``recognizer_version`` (:data:`RECOGNIZER_VERSION`,
+bumped whenever features, architecture, loss or labels change; loading refuses other
+versions), the sha256 of the training data's ``manifest.json`` and the data's frame rate;
+:meth:`Recognizer.describe` adds the sha256 of the weights file itself: accuracies are
+comparable only under the same description. Motions must be at the training data's frame
+rate (30 fps for scene data): the features include per-frame velocities.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Sequence
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import nnx
+
+from jaxmotion.models.recognizer import (ACTIONS, RECOGNIZER_VERSION, ActionRecognizer,
+                                         RecognizerConfig)
+
+__all__ = ["ACTIONS", "RECOGNIZER_VERSION", "Recognizer", "action_accuracy", "action_ids",
+           "load_recognizer"]
+
+RETRAIN = ("python -m jaxmotion.train --config configs/recognizer.py data_dir=DATA "
+           "workdir=runs/recognizer")
+
+
+def padded_rows(n: int) -> int:
+    """Rows a chunk of ``n`` is padded to: a power of two, at least 8 (few compiled shapes)."""
+    return max(8, 1 << max(0, n - 1).bit_length())
+
+
+def action_ids(actions) -> np.ndarray:
+    """Action names (``"walk"``, ``"sit"``, ``"stand_up"``, ``"lie"``) or ids -> ``[N]`` int32
+    indices into :data:`ACTIONS`."""
+    if isinstance(actions, str):
+        raise TypeError("pass a sequence of actions, e.g. ['sit'], not a single str")
+    items = list(actions) if not isinstance(actions, np.ndarray) else actions.tolist()
+    out = []
+    for a in items:
+        if isinstance(a, str):
+            if a not in ACTIONS:
+                raise ValueError(f"unknown action {a!r}; valid: {', '.join(ACTIONS)}")
+            out.append(ACTIONS.index(a))
+        elif isinstance(a, (int, np.integer)) and not isinstance(a, bool):
+            if not 0 <= int(a) < len(ACTIONS):
+                raise ValueError(f"action id {a} out of range 0..{len(ACTIONS) - 1}")
+            out.append(int(a))
+        else:
+            raise TypeError(f"an action is a name in {ACTIONS} or its index, got {a!r}")
+    return np.asarray(out, np.int32)
+
+
+class Recognizer:
+    """A trained, frozen action recognizer (made by :func:`load_recognizer`).
+
+    ``logits(joints [B, T, 22, 3], mask [B, T]) -> [B, 4]`` float32 and
+    ``predict(joints, mask) -> [B]`` int32 indices into :data:`ACTIONS` (jitted, in chunks of
+    ``batch_size``; chunks are padded to powers of two (at least 8) and T to a multiple of
+    32, so few shapes compile; padding never changes a result). ``version`` is the file's
+    ``recognizer_version``.
+    """
+
+    def __init__(self, model: ActionRecognizer, info: dict, *, batch_size: int = 256):
+        model.eval()
+        self.model, self.info, self.batch_size = model, dict(info), int(batch_size)
+        graphdef, state = nnx.split(model)
+        self._state = state
+
+        @jax.jit
+        def logits(state, joints, mask):
+            return nnx.merge(graphdef, state)(joints, mask, deterministic=True)
+
+        self._logits = logits
+
+    @property
+    def version(self) -> str:
+        return self.info["recognizer_version"]
+
+    @property
+    def actions(self) -> tuple[str, ...]:
+        return ACTIONS
+
+    def describe(self) -> dict:
+        """What identifies this recognizer's numbers (version, weights and data hashes, ...)."""
+        keys = ("recognizer_version", "weights_sha256", "data_manifest_sha256", "data_kind",
+                "fps", "step")
+        return {k: self.info.get(k) for k in keys}
+
+    def logits(self, joints, mask=None) -> np.ndarray:
+        """``joints [B, T, 22, 3]`` (z-up, metres) and a prefix ``mask [B, T]`` (None: every
+        frame valid) -> ``[B, 4]`` logits in the order of :data:`ACTIONS`."""
+        joints = np.asarray(joints, np.float32)
+        if joints.ndim != 4 or joints.shape[2:] != (22, 3) or joints.shape[0] == 0:
+            raise ValueError(f"joints must be [B, T, 22, 3] with B >= 1, got {joints.shape}")
+        b, t = joints.shape[:2]
+        mask = np.ones((b, t), bool) if mask is None else np.asarray(mask)
+        if mask.shape != (b, t):
+            raise ValueError(f"mask must be [B, T] = {(b, t)} like joints, got {mask.shape}")
+        mask = mask.astype(bool)
+        n = mask.sum(1)
+        if (n == 0).any() or not all(mask[i, : n[i]].all() for i in range(b)):
+            raise ValueError("every mask row needs valid frames first (a non-empty prefix)")
+        if not np.isfinite(joints[mask]).all():
+            raise ValueError("joints contain NaN or inf in valid frames")
+        pad = -t % 32
+        joints = np.pad(joints, ((0, 0), (0, pad), (0, 0), (0, 0)))
+        mask = np.pad(mask, ((0, 0), (0, pad)))
+        out = []
+        for s in range(0, b, self.batch_size):
+            part = [joints[s:s + self.batch_size], mask[s:s + self.batch_size]]
+            extra = padded_rows(len(part[0])) - len(part[0])
+            # batch padding repeats the last row (a valid input); its outputs are dropped
+            part = [np.concatenate([a, np.repeat(a[-1:], extra, 0)]) for a in part]
+            out.append(np.asarray(self._logits(self._state, *part))[: len(part[0]) - extra])
+        return np.concatenate(out).astype(np.float32)
+
+    def predict(self, joints, mask=None) -> np.ndarray:
+        """The recognised action of each motion: ``[B]`` int32 indices into :data:`ACTIONS`."""
+        return np.argmax(self.logits(joints, mask), axis=-1).astype(np.int32)
+
+    def predict_names(self, joints, mask=None) -> list[str]:
+        """The recognised action of each motion by name."""
+        return [ACTIONS[i] for i in self.predict(joints, mask)]
+
+    def __repr__(self):
+        return f"Recognizer(version={self.version!r})"
+
+
+def load_recognizer(path, *, batch_size: int = 256) -> Recognizer:
+    """The recognizer in a training workdir or a ``model.safetensors`` written by its training.
+
+    Refuses files of another :data:`RECOGNIZER_VERSION` (retrain with :data:`RETRAIN`)."""
+    from jaxmotion.config import config_from_dict
+    from jaxmotion.models.weights import apply_weights, load_weights
+
+    path = Path(path)
+    file = path / "model.safetensors" if path.is_dir() else path
+    if not file.is_file():
+        raise FileNotFoundError(f"{file}: no trained recognizer here; train one with {RETRAIN}")
+    tensors, cfg = load_weights(file)
+    version = cfg.get("recognizer_version")
+    if version is None:
+        raise ValueError(f"{file}: not an action recognizer (task {cfg.get('task')!r}); train "
+                         f"one with {RETRAIN}")
+    if version != RECOGNIZER_VERSION:
+        raise ValueError(f"{file}: recognizer version {version!r}, but this jaxmotion computes "
+                         f"{RECOGNIZER_VERSION!r}; retrain it with {RETRAIN} (or use the "
+                         "jaxmotion version that wrote it)")
+    if tuple(cfg.get("actions", ACTIONS)) != ACTIONS:
+        raise ValueError(f"{file}: labels {cfg.get('actions')} differ from {ACTIONS}; retrain "
+                         f"it with {RETRAIN}")
+    model = ActionRecognizer(config_from_dict(RecognizerConfig, cfg["model"]), rngs=nnx.Rngs(0))
+    apply_weights(model, tensors, source=str(file))
+    for name in ("feature_mean", "feature_std"):
+        getattr(model, name)[...] = jnp.asarray(tensors[f"stats/{name}"])
+    info = {**cfg, "weights_sha256": hashlib.sha256(file.read_bytes()).hexdigest()}
+    return Recognizer(model, info, batch_size=batch_size)
+
+
+def action_accuracy(recognizer: Recognizer, joints, mask, actions: Sequence) -> float:
+    """Fraction of motions whose recognised action is the one asked for.
+
+    Args:
+      joints: ``[N, T, 22, 3]`` motions (z-up, metres, the training data's frame rate);
+        ``mask``: ``[N, T]`` prefix masks (None: every frame valid).
+      actions: N action names (``"walk"``, ``"sit"``, ``"stand_up"``, ``"lie"``) or ids.
+    """
+    want = action_ids(actions)
+    n = np.shape(joints)[0]
+    if len(want) != n:
+        raise ValueError(f"need one action per motion: {len(want)} actions for {n} motions")
+    return float(np.mean(recognizer.predict(joints, mask) == want))

@@ -7,7 +7,9 @@ mix of ground-truth and ADM-sampled affordance maps, as the paper does (50/50).
 ``velocity_weight`` / ``acceleration_weight`` (> 0) add the geometric losses of
 :mod:`jaxmotion.diffusion.geometric_losses` on the predicted clean motion (joint velocities
 in m/s, accelerations in m/s², squared errors) to the x0 loss: without them the model writes
-motion finer than ~0.3 s as holds and jumps. ``init_from=FILE`` starts from another AMDM's
+motion finer than ~0.3 s as holds and jumps. ``geometric_weighting=signal`` scales each
+example's terms by its signal level ᾱ_t, so they act where the fine detail is decided (low
+noise) and do not pull the blurry high-noise estimates towards stillness. ``init_from=FILE`` starts from another AMDM's
 weights (workdir or ``.safetensors``; same model config) and keeps its normalisation
 statistics, so a fine-tune continues the same function.
 
@@ -33,6 +35,7 @@ class AMDMTrainConfig(TrainConfig):
     adm_sampler_steps: int = 10
     velocity_weight: float = 0.0
     acceleration_weight: float = 0.0
+    geometric_weighting: str = "uniform"
     init_from: str = ""
     steps: int = 8000
     batch_size: int = 16
@@ -44,6 +47,9 @@ class AMDMTrainConfig(TrainConfig):
         super().__post_init__()
         if not 0.0 <= self.predicted_fraction <= 1.0:
             raise ValueError(f"predicted_fraction must be in [0, 1], got {self.predicted_fraction}")
+        if self.geometric_weighting not in ("uniform", "signal"):
+            raise ValueError("geometric_weighting must be 'uniform' or 'signal' (each example's "
+                             f"terms times ᾱ_t), got {self.geometric_weighting!r}")
         if self.velocity_weight < 0 or self.acceleration_weight < 0:
             raise ValueError("velocity_weight and acceleration_weight must be ≥ 0 (0 = off), got "
                              f"{self.velocity_weight} and {self.acceleration_weight}")

@@ -195,6 +195,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     report = evaluate(args.data, models, split=args.split, num_cases=args.cases,
                       samples=args.samples, replications=args.replications, seed=args.seed,
                       body=not args.joints_only, evaluator=args.evaluator,
+                      recognizer=args.recognizer,
                       vertex_stride=args.vertex_stride, batch_size=args.batch_size,
                       protocol=args.protocol, grounding=args.grounding)
     paths = write_report(report, args.out)
@@ -358,6 +359,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", type=int, default=4, help="samples per case, K (default 4)")
     p.add_argument("--replications", type=int, default=3, help="R (default 3)")
     p.add_argument("--evaluator", default=None, help="text-motion evaluator workdir (optional)")
+    p.add_argument("--recognizer", default=None,
+                   help="action recognizer workdir (python -m jaxmotion.train --config "
+                   "configs/recognizer.py); adds the recognizer's action accuracy (optional)")
     p.add_argument("--joints-only", action="store_true",
                    help="fast joint-sphere body instead of fitted SMPL-X meshes")
     p.add_argument("--vertex-stride", type=int, default=4,

@@ -124,6 +124,13 @@ def _private_uses(path: Path, known: dict[str, Path]) -> list[str]:
         if name and name.startswith("_") and target != me and not name.startswith("__"):
             out.append(f"{path.relative_to(ROOT)}:{line}: from {target} import {name}")
     own_classes = {n.name for n in ast.walk(tree) if isinstance(n, ast.ClassDef)}
+    # privates this module defines itself (``self._x = ...``, methods ``_x``): its own business
+    own_privates = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)
+                    and isinstance(n.value, ast.Name) and n.value.id == "self"
+                    and isinstance(n.ctx, ast.Store)}
+    own_privates |= {n.name for c in ast.walk(tree) if isinstance(c, ast.ClassDef)
+                     for n in c.body if isinstance(n, (ast.FunctionDef, ast.Assign))
+                     and getattr(n, "name", "").startswith("_")}
     for node in ast.walk(tree):
         if not (isinstance(node, ast.Attribute) and node.attr.startswith("_")
                 and not node.attr.startswith("__")):
@@ -134,6 +141,8 @@ def _private_uses(path: Path, known: dict[str, Path]) -> list[str]:
                        f"{aliases[base.id]}.{node.attr}")
         elif isinstance(base, ast.Name) and base.id in ("self", "cls", *own_classes):
             continue  # an object's own privates, in its own module
+        elif node.attr in own_privates and path.is_relative_to(PKG):
+            continue  # a private this module defines, used elsewhere in the same module
         elif isinstance(base, (ast.Name, ast.Call, ast.Attribute)) and not _third_party(base):
             out.append(f"{path.relative_to(ROOT)}:{node.lineno}: "
                        f"{ast.unparse(base)}.{node.attr} (another object's private attribute)")

@@ -63,7 +63,8 @@ def test_ground_truth_affordance_row(tiny_runs):
         assert np.isfinite(o["summary"][key]["mean"]), key
     gt = rep["ground_truth"]
     assert gt["teleport"] == 0.0 and 0.0 < gt["pelvis_speed_p99"] < 3.0
-    assert "**Plausibility**" in md and md.count("| dataset motions |") == 2
+    assert "**Plausibility and action**" in md and md.count("| dataset motions |") == 2
+    assert gt["action_judged"] >= 0.75  # the dataset's own motions: the judge's ceiling
     row = rep["models"]["adm"]["cases"][0]
     assert len(row["pelvis_speeds"]) == 2 and 0.0 <= row["teleport"] <= 1.0
     assert md.count("| adm | perceiver |") == 1 and "| oracle | perceiver |" not in md

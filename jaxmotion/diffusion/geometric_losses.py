@@ -28,24 +28,27 @@ def _pairs(mask, lag: int):
     return out.astype(jnp.float32)
 
 
-def _masked_mse(err, valid):
-    """Mean of ``‖err‖²`` over joints of the valid frames: ``err [B,T',J,3]``, ``valid [B,T']``."""
+def _masked_mse(err, valid, weights=None):
+    """Mean of ``‖err‖²`` over joints of the valid frames: ``err [B,T',J,3]``, ``valid [B,T']``;
+    ``weights [B]`` scale each example's terms (the mean stays over the valid entries)."""
     sq = jnp.sum(err * err, axis=-1)  # [B, T', J]
     w = valid[..., None] * jnp.ones_like(sq)
-    return jnp.sum(sq * w) / jnp.maximum(jnp.sum(w), 1.0)
+    scale = 1.0 if weights is None else jnp.asarray(weights, sq.dtype)[:, None, None]
+    return jnp.sum(sq * w * scale) / jnp.maximum(jnp.sum(w), 1.0)
 
 
-def velocity_loss(pred, target, mask, fps: float):
+def velocity_loss(pred, target, mask, fps: float, weights=None):
     """Mean squared error of joint velocities (m/s)², ``pred``, ``target`` ``[B,T,J,3]`` in
-    metres, ``mask [B,T]``; velocities between consecutive valid frames."""
+    metres, ``mask [B,T]``; velocities between consecutive valid frames. ``weights [B]``:
+    per-example factors (e.g. the signal level ᾱ_t of each example's diffusion step)."""
     v_p = (pred[:, 1:] - pred[:, :-1]) * fps
     v_t = (target[:, 1:] - target[:, :-1]) * fps
-    return _masked_mse(v_p - v_t, _pairs(mask, 1))
+    return _masked_mse(v_p - v_t, _pairs(mask, 1), weights)
 
 
-def acceleration_loss(pred, target, mask, fps: float):
+def acceleration_loss(pred, target, mask, fps: float, weights=None):
     """Mean squared error of joint accelerations (m/s²)², as :func:`velocity_loss` over
     three consecutive valid frames."""
     def acc(x):
         return (x[:, 2:] - 2.0 * x[:, 1:-1] + x[:, :-2]) * fps * fps
-    return _masked_mse(acc(pred) - acc(target), _pairs(mask, 2))
+    return _masked_mse(acc(pred) - acc(target), _pairs(mask, 2), weights)

@@ -230,8 +230,12 @@ def _bodies(joints, mask, fps: float, stride: int = 1):
 
 
 def score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: list, bar,
-                 stride: int = 1):
-    """Per-case metric rows for joints ``[C,K,T,22,3]`` (and ADM maps ``affs[c][k]``)."""
+                 stride: int = 1, recognizer=None):
+    """Per-case metric rows for joints ``[C,K,T,22,3]`` (and ADM maps ``affs[c][k]``): the
+    physical metrics, plausibility (:data:`PLAUSIBILITY`), the geometric action judge
+    (``action_judged``: the K motions' share that do the case's action on its target,
+    :mod:`jaxmotion.eval.action_judge`) and, with a ``recognizer``
+    (:func:`jaxmotion.eval.recognizer.load_recognizer`), ``action_recognized``."""
     import jax
 
     from jaxmotion.eval.metrics import affordance_grounding_from_map
@@ -259,6 +263,7 @@ def score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: l
         row = {k: float(np.mean(v)) for k, v in m.items()}
         row.update({k: float(np.mean(plaus[k])) for k in PLAUSIBILITY})
         row["pelvis_speeds"] = [float(v) for v in np.atleast_1d(plaus["pelvis_speed_max"])]
+        row.update(_action_columns(c, joints[ci], recognizer))
         # the paper's definition: the target mask holds every point of the target's class
         class_mask = c.get("target_class_mask", c["target_mask"])
         outside = "goal_points" in c and not c["target_mask"].any()
@@ -275,6 +280,33 @@ def score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: l
         if bar is not None:
             bar.update(1)
     return rows
+
+
+def _action_columns(case, joints, recognizer) -> dict:
+    """The share of the K motions ``joints [K,T,22,3]`` that do the case's action on its
+    target, by the geometric judge (``action_judged``) and by the recognizer
+    (``action_recognized``, with one)."""
+    import jax
+
+    from jaxmotion.eval.action_judge import judge_actions
+
+    k = joints.shape[0]
+    mask = np.broadcast_to(case["mask"], joints.shape[:2])
+    target = case.get("goal_points")
+    if target is None:
+        target = case["points"][case["target_mask"]]
+    out = {}
+    if len(target):
+        rep = jax.device_get(judge_actions(
+            joints, mask, [case["action"]] * k, np.tile(target.min(0), (k, 1)),
+            np.tile(target.max(0), (k, 1)), np.broadcast_to(target, (k, *target.shape))))
+        out["action_judged"] = float(np.mean(rep["success"]))
+    if recognizer is not None:
+        from jaxmotion.eval.recognizer import action_accuracy
+
+        out["action_recognized"] = float(action_accuracy(recognizer, joints, mask,
+                                                         [case["action"]] * k))
+    return out
 
 
 def _speed_percentiles(rows) -> dict:
@@ -307,6 +339,7 @@ def evaluate(
     seed: int = 0,
     body: bool = True,
     evaluator=None,
+    recognizer=None,
     ground_truth: bool = True,
     vertex_stride: int = 4,
     batch_size: int = 16,
@@ -340,6 +373,10 @@ def evaluate(
         from jaxmotion.eval.evaluator import load_evaluator
 
         evaluator = load_evaluator(evaluator)
+    if recognizer is not None and isinstance(recognizer, (str, Path)):
+        from jaxmotion.eval.recognizer import load_recognizer
+
+        recognizer = load_recognizer(recognizer)
     encoder = load_text_encoder(TEXT_ENCODER)
     fps = SCENE_FPS
     phys = physical_fn(body, fps)
@@ -417,7 +454,7 @@ def evaluate(
                         affs[ci][k] = res["affordance"][j]
             grounded = two_stage and not oracle  # ground-truth maps are not scored
             per_case = score_cases(cases, joints, affs if grounded else None, phys, body, fps,
-                                    fit_errors, bar, vertex_stride)
+                                   fit_errors, bar, vertex_stride, recognizer)
             keys = sorted({k for row in per_case for k in row} - {"pelvis_speeds"})
             rep = {k: float(np.nanmean([row.get(k, np.nan) for row in per_case])) for k in keys}
             rep.update(_speed_percentiles(per_case))
@@ -457,7 +494,8 @@ def evaluate(
         cases = load_eval_cases(data_dir, split, read_config(models[0].amdm), num_cases, seed,
                             first_regions)
         gt = np.stack([c["gt"] for c in cases])[:, None]
-        rows = score_cases(cases, gt, None, phys, body, fps, [], None, vertex_stride)
+        rows = score_cases(cases, gt, None, phys, body, fps, [], None, vertex_stride,
+                           recognizer)
         report["ground_truth"] = {k: float(np.nanmean([r[k] for r in rows])) for k in rows[0]
                                   if k != "pelvis_speeds"}
         report["ground_truth"].update(_speed_percentiles(rows))
@@ -576,12 +614,15 @@ def format_markdown(report: dict) -> str:
         lines.append("| " + " | ".join(cells) + " |")
     head = ["method", "sampler", "teleport (%) ↓", "pelvis speed p50 (m/s)",
             "pelvis speed p99 (m/s) ↓", "top joint speed (m/s) ↓", "jerk (m/s³) ↓",
-            "floor penetration (cm) ↓"]
-    lines += ["", "**Plausibility** (a teleport: a joint faster than 9 m/s or the pelvis faster "
-              "than 3 m/s between two frames)", "", "| " + " | ".join(head) + " |",
+            "floor penetration (cm) ↓", "action, judge (%) ↑", "action, recognizer (%) ↑"]
+    lines += ["", "**Plausibility and action** (a teleport: a joint faster than 9 m/s or the "
+              "pelvis faster than 3 m/s between two frames; action: the share of motions doing "
+              "the instruction's action on its target, by the geometric judge at the anchor "
+              "frame and by the action recognizer)", "", "| " + " | ".join(head) + " |",
               "|" + "---|" * len(head)]
     plaus_keys = (("teleport", 100, 1), ("pelvis_speed_p50", 1, 2), ("pelvis_speed_p99", 1, 2),
-                  ("joint_speed_max", 1, 2), ("jerk_mean", 1, 1), ("floor_penetration", 100, 2))
+                  ("joint_speed_max", 1, 2), ("jerk_mean", 1, 1), ("floor_penetration", 100, 2),
+                  ("action_judged", 100, 1), ("action_recognized", 100, 1))
     if "ground_truth" in report:
         g = report["ground_truth"]
         lines.append("| " + " | ".join(["dataset motions", "–"] + [

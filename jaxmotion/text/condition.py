@@ -75,15 +75,24 @@ def embed_one(text: str, cache_dir: Path | None, text_tokens: int = 0):
     :meth:`~jaxmotion.pipelines.affordance.AffordancePipeline.embed_text`). Both go through the project's
     on-disk caches (:class:`~jaxmotion.text.EmbeddingCache`,
     :class:`~jaxmotion.text.TokenCache`), keyed by the weights file's size and mtime (its
-    checksum would mean reading 90 MB): a repeated command never loads the encoder."""
+    checksum would mean reading 90 MB): a repeated command never loads the encoder. A new
+    sentence goes through the encoder's traced program kept beside them (``programs/``,
+    :func:`jaxmotion.text.minilm.encode_one_cached`: the same numbers, without building the
+    network in every new process)."""
     from jaxmotion.text import EmbeddingCache, TokenCache, cache_key, pad_tokens
-    from jaxmotion.text.minilm import minilm_dir
+    from jaxmotion.text.minilm import encode_one_cached, minilm_dir
+
+    programs = None if cache_dir is None else Path(cache_dir).parent / "programs"
 
     def pooled():
-        return text_encoder()([text])[0]
+        if programs is None:
+            return text_encoder()([text])[0]
+        return encode_one_cached(text, programs)
 
     def words():
-        return text_encoder().token_states([text])[0]
+        if programs is None:
+            return text_encoder().token_states([text])[0]
+        return encode_one_cached(text, programs, tokens=True)
 
     if cache_dir is None:
         emb, states = pooled(), (words() if text_tokens else None)

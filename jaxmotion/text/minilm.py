@@ -30,6 +30,7 @@ cannot change a result beyond float rounding: padded keys get an additive
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import importlib.util
 import json
@@ -48,6 +49,7 @@ __all__ = [
     "BertConfig",
     "MiniLM",
     "TextEncoder",
+    "encode_one_cached",
     "load_minilm",
     "minilm_dir",
 ]
@@ -427,3 +429,73 @@ def load_minilm(folder=None, *, batch_size: int = 64) -> TextEncoder:
         weights_path=folder / "model.safetensors",
         batch_size=batch_size,
     )
+
+
+# --------------------------------------------------------------------------- one sentence, fast
+def _canonical_order(cfg: BertConfig) -> list[tuple[tuple, str, bool]]:
+    """``(path, safetensors name, transpose)`` in the order ``jax.tree.flatten`` visits the
+    model's state (sorted keys at every level); checked against the real state when the
+    program is traced (:func:`encode_one_cached`)."""
+    return [(p, *v) for p, v in sorted(_hf_names(cfg).items())]
+
+
+def encode_one_cached(text: str, cache_dir, *, tokens: bool = False, folder=None) -> np.ndarray:
+    """One sentence through a traced forward kept on disk (:func:`jaxmotion.compiled.cached_call`):
+    the pooled embedding ``[dim]``, or with ``tokens`` the token states ``[n_tokens, dim]`` —
+    the same numbers as :class:`TextEncoder`'s batch of one (same program, same padding).
+
+    A fresh process otherwise spends about a second building the network before it can
+    encode a new sentence; here it reads the weights as arrays (they are the program's
+    arguments, so the file on disk stays small), tokenises, and runs the deserialised program.
+    The network is built only when the program is not on disk yet."""
+    from safetensors.numpy import load_file
+
+    from jaxmotion.compiled import cached_call
+
+    folder = Path(folder) if folder is not None else minilm_dir()
+    cfg = BertConfig.from_hf(folder / "config.json")
+    max_length = max_seq_length(folder)
+    tok = _fast_tokenizer(str(folder / "tokenizer.json"), max_length)
+    ids = tok.encode(text).ids
+    t = next((min(b, max_length) for b in LENGTH_BUCKETS if len(ids) <= b), max_length)
+    arr = np.zeros((1, t), np.int32)
+    mask = np.zeros((1, t), np.int32)
+    arr[0, :len(ids)] = ids
+    mask[0, :len(ids)] = 1
+    tensors = load_file(str(folder / "model.safetensors"))
+    order = _canonical_order(cfg)
+    leaves = tuple(np.ascontiguousarray(
+        (tensors[name].T if transpose else tensors[name]).astype(np.float32))
+        for _, name, transpose in order)
+
+    def build():
+        enc = load_minilm(folder)
+        flat, treedef = jax.tree_util.tree_flatten_with_path(enc._state)
+        paths = [tuple(getattr(k, "key", getattr(k, "idx", getattr(k, "name", k))) for k in p)
+                 for p, _ in flat]
+        paths = [p[:-1] if p and p[-1] == "value" else p for p in paths]
+        if [tuple(p) for p in paths] != [p for p, _, _ in order]:
+            raise AssertionError("MiniLM's state is not flattened in the canonical order; "
+                                 "update _canonical_order")
+        fwd = enc._forward_tokens if tokens else enc._forward
+
+        def run(leaves, ids, mask):
+            return fwd(jax.tree_util.tree_unflatten(treedef, list(leaves)), ids, mask)
+
+        return run
+
+    st = (folder / "model.safetensors").stat()
+    out = cached_call(Path(cache_dir), "minilm-tokens" if tokens else "minilm",
+                      f"{st.st_size},{st.st_mtime_ns}", build, (leaves, arr, mask))
+    out = np.asarray(out, np.float32)[0]
+    return out[:len(ids)] if tokens else out
+
+
+@functools.lru_cache(maxsize=2)
+def _fast_tokenizer(path: str, max_length: int):
+    from tokenizers import Tokenizer
+
+    tok = Tokenizer.from_file(path)
+    tok.no_padding()
+    tok.enable_truncation(max_length=max_length)
+    return tok

@@ -324,6 +324,7 @@ class AMDMTask(DataTask):
         self.a_std = jnp.asarray(st["affordance_std"])
         self.velocity_weight = float(getattr(cfg, "velocity_weight", 0.0))
         self.acceleration_weight = float(getattr(cfg, "acceleration_weight", 0.0))
+        self.geometric_weighting = str(getattr(cfg, "geometric_weighting", "uniform"))
         if (self.velocity_weight or self.acceleration_weight) and cfg.model.motion_dim != 66:
             raise ValueError("velocity_weight / acceleration_weight need the 66-d joint-position "
                              f"features (model.motion_dim=66), got {cfg.model.motion_dim}")
@@ -430,12 +431,14 @@ class AMDMTask(DataTask):
             return (x * self.m_std).reshape(x.shape[0], x.shape[1], -1, 3)
 
         pred, true = metres(aux["x0_hat"]), metres(x0)
+        w = (self.schedule.alphas_cumprod[aux["t"]] if self.geometric_weighting == "signal"
+             else None)
         terms = {"x0": loss}
         if self.velocity_weight:
-            terms["velocity"] = velocity_loss(pred, true, mask, SCENE_FPS)
+            terms["velocity"] = velocity_loss(pred, true, mask, SCENE_FPS, w)
             loss = loss + self.velocity_weight * terms["velocity"]
         if self.acceleration_weight:
-            terms["acceleration"] = acceleration_loss(pred, true, mask, SCENE_FPS)
+            terms["acceleration"] = acceleration_loss(pred, true, mask, SCENE_FPS, w)
             loss = loss + self.acceleration_weight * terms["acceleration"]
         return loss, terms
 

@@ -25,7 +25,8 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
     instance's points), ``target_class_mask`` (the points of every object of the target's
     semantic class, as the grounding metrics of the paper use; the instance when the scene
     has no semantic labels), ``instance`` (the crop points' instance ids), ``objects`` (the
-    room's object table, a list of dicts, empty when the scene has none), ``rotation``,
+    room's object table, a list of dicts, empty when the scene has none), ``target_id``,
+    ``rotation``,
     ``shift`` (``x_world = x_crop @ rotation + shift``), ``file``.
 
     ``centres``: one xy crop centre per case (world frame) replacing the crop's placement
@@ -93,7 +94,7 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
                           colors=c.colors, mask=mask, gt=gt, target_mask=c.target_mask,
                           target_class_mask=class_mask, instance=inst[c.indices],
                           objects=objects, rotation=c.rotation, shift=c.shift, file=f.name,
-                          view=view, **goal))
+                          view=view, target_id=int(s["target_id"]), **goal))
     return cases, spec
 
 

@@ -296,10 +296,13 @@ def _action_columns(case, joints, recognizer) -> dict:
     if target is None:
         target = case["points"][case["target_mask"]]
     out = {}
-    if len(target):
+    box = _target_box(case)
+    if box is not None or len(target):
+        lo, hi, surface = box if box is not None else (target.min(0), target.max(0), np.nan)
+        pts = target if len(target) else np.broadcast_to(lo, (1, 3))
         rep = jax.device_get(judge_actions(
-            joints, mask, [case["action"]] * k, np.tile(target.min(0), (k, 1)),
-            np.tile(target.max(0), (k, 1)), np.broadcast_to(target, (k, *target.shape))))
+            joints, mask, [case["action"]] * k, np.tile(lo, (k, 1)), np.tile(hi, (k, 1)),
+            np.broadcast_to(pts, (k, *pts.shape)), surface_height=np.full(k, surface)))
         out["action_judged"] = float(np.mean(rep["success"]))
     if recognizer is not None:
         from jaxmotion.eval.recognizer import action_accuracy
@@ -307,6 +310,22 @@ def _action_columns(case, joints, recognizer) -> dict:
         out["action_recognized"] = float(action_accuracy(recognizer, joints, mask,
                                                          [case["action"]] * k))
     return out
+
+
+def _target_box(case):
+    """The case's target from the room's object table in the crop frame: ``(bbox_min [3],
+    bbox_max [3], surface height or NaN)``, or None without a table entry. A crop's few points
+    on the target are a poor guide to its seat height; the table's box and surface are exact."""
+    obj = next((o for o in case.get("objects", ()) if o["id"] == case.get("target_id")), None)
+    if obj is None:
+        return None
+    lo, hi = np.asarray(obj["bbox_min"], np.float64), np.asarray(obj["bbox_max"], np.float64)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])
+    crop = (corners - case["shift"]) @ np.asarray(case["rotation"]).T
+    surface = obj.get("surface_height")
+    surface = np.nan if surface is None else float(surface) - float(case["shift"][2])
+    return crop.min(0).astype(np.float32), crop.max(0).astype(np.float32), surface
 
 
 def _speed_percentiles(rows) -> dict:

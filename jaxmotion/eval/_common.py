@@ -59,3 +59,29 @@ def safe_norm(x, axis=-1):
     sq = jnp.sum(x * x, axis=axis)
     pos = sq > 0
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1.0)), 0.0)
+
+
+def motion_batch(joints, mask=None, *, multiple: int = 32):
+    """A batch of motions checked and padded for a jitted motion network (host-side numpy):
+    ``joints [B, T, 22, 3]`` (B ≥ 1, finite on valid frames) and a prefix ``mask [B, T]``
+    (None: every frame valid) -> both padded in T to a multiple of ``multiple`` (few compiled
+    shapes; padded frames are invalid). ``ValueError`` names what is wrong."""
+    import numpy as np
+
+    joints = np.asarray(joints, np.float32)
+    if joints.ndim != 4 or joints.shape[2:] != (22, 3) or joints.shape[0] == 0:
+        raise ValueError(f"joints must be [B, T, 22, 3] with B >= 1, got {joints.shape}")
+    b, t = joints.shape[:2]
+    mask = np.ones((b, t), bool) if mask is None else np.asarray(mask)
+    if mask.shape != (b, t):
+        raise ValueError(f"mask must be [B, T] = {(b, t)} like joints, got {mask.shape}")
+    mask = mask.astype(bool)
+    n = mask.sum(1)
+    if (n == 0).any() or not all(mask[i, : n[i]].all() for i in range(b)):
+        raise ValueError("every mask row needs valid frames first (a non-empty prefix)")
+    if not np.isfinite(joints[mask]).all():
+        raise ValueError("joints contain NaN or inf in valid frames")
+    pad = -t % multiple
+    joints = np.pad(joints, ((0, 0), (0, pad), (0, 0), (0, 0)))
+    mask = np.pad(mask, ((0, 0), (0, pad)))
+    return joints, mask

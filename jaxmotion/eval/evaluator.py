@@ -31,6 +31,8 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from jaxmotion.eval._common import motion_batch
 from flax import nnx
 
 from jaxmotion.constants import TEXT_ENCODER
@@ -107,22 +109,7 @@ class Evaluator:
 
     def encode_motion(self, joints, mask=None) -> np.ndarray:
         """``joints [B, T, 22, 3]`` (z-up, metres) and a prefix ``mask [B, T]`` -> ``[B, D]``."""
-        joints = np.asarray(joints, np.float32)
-        if joints.ndim != 4 or joints.shape[2:] != (22, 3) or joints.shape[0] == 0:
-            raise ValueError(f"joints must be [B, T, 22, 3] with B >= 1, got {joints.shape}")
-        b, t = joints.shape[:2]
-        mask = np.ones((b, t), bool) if mask is None else np.asarray(mask)
-        if mask.shape != (b, t):
-            raise ValueError(f"mask must be [B, T] = {(b, t)} like joints, got {mask.shape}")
-        mask = mask.astype(bool)
-        n = mask.sum(1)
-        if (n == 0).any() or not all(mask[i, : n[i]].all() for i in range(b)):
-            raise ValueError("every mask row needs valid frames first (a non-empty prefix)")
-        if not np.isfinite(joints[mask]).all():
-            raise ValueError("joints contain NaN or inf in valid frames")
-        pad = -t % 32
-        joints = np.pad(joints, ((0, 0), (0, pad), (0, 0), (0, 0)))
-        mask = np.pad(mask, ((0, 0), (0, pad)))
+        joints, mask = motion_batch(joints, mask)
         return self._chunks(self._motion, joints, mask)
 
     def encode_text_embeddings(self, emb) -> np.ndarray:

@@ -272,15 +272,24 @@ class ADMTask(DataTask):
         return loss, {}
 
 
-def _init_adm(adm, cfg) -> None:
-    """Start ``adm`` from the weights of another ADM run (``cfg.init_from``)."""
-    from jaxmotion.models.weights import apply_weights, load_weights, weights_path
+def _read_init(cfg, task: str):
+    """``(path, tensors, saved config)`` of ``cfg.init_from``, refused unless it is a ``task``
+    checkpoint."""
+    from jaxmotion.models.weights import load_weights, weights_path
 
     path = weights_path(cfg.init_from)
     tensors, saved = load_weights(path)
-    if saved.get("task") != "adm":
+    if saved.get("task") != task:
         raise ValueError(f"init_from={cfg.init_from}: {path} is a {saved.get('task')!r} "
-                         "checkpoint, not an ADM one")
+                         f"checkpoint, not an {task.upper()} one")
+    return path, tensors, saved
+
+
+def _init_adm(adm, cfg) -> None:
+    """Start ``adm`` from the weights of another ADM run (``cfg.init_from``)."""
+    from jaxmotion.models.weights import apply_weights
+
+    path, tensors, saved = _read_init(cfg, "adm")
     mine = config_to_dict(cfg.model)
     theirs = {"target_input": False, **saved["model"]}
     grow = mine["target_input"] and not theirs["target_input"]
@@ -354,13 +363,9 @@ class AMDMTask(DataTask):
     def _init_amdm(self, amdm, cfg) -> None:
         """Start ``amdm`` from another AMDM's weights (``cfg.init_from``), with its
         normalisation statistics (the same function, whatever this dataset's statistics)."""
-        from jaxmotion.models.weights import apply_weights, load_weights, weights_path
+        from jaxmotion.models.weights import apply_weights
 
-        path = weights_path(cfg.init_from)
-        tensors, saved = load_weights(path)
-        if saved.get("task") != "amdm":
-            raise ValueError(f"init_from={cfg.init_from}: {path} is a {saved.get('task')!r} "
-                             "checkpoint, not an AMDM one")
+        path, tensors, saved = _read_init(cfg, "amdm")
         mine = config_to_dict(cfg.model)
         diff = [f"{k} ({saved['model'].get(k)!r} vs {mine[k]!r})" for k in sorted(mine)
                 if saved["model"].get(k, mine[k]) != mine[k]]

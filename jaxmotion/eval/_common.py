@@ -61,13 +61,30 @@ def safe_norm(x, axis=-1):
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1.0)), 0.0)
 
 
+def padded_rows(n: int) -> int:
+    """Rows a chunk of ``n`` is padded to: a power of two, at least 8 (few compiled shapes)."""
+    return max(8, 1 << max(0, n - 1).bit_length())
+
+
+def run_in_chunks(fn, state, arrays, batch_size: int) -> np.ndarray:
+    """``fn(state, *rows)`` over ``arrays`` (leading axis B) in chunks of ``batch_size``, each
+    padded to :func:`padded_rows` by repeating its last row (a valid input, whose outputs are
+    dropped): float32 numpy ``[B, ...]``, one compiled shape per padded chunk size."""
+    n = arrays[0].shape[0]
+    out = []
+    for s in range(0, n, batch_size):
+        part = [a[s:s + batch_size] for a in arrays]
+        pad = padded_rows(len(part[0])) - len(part[0])
+        part = [np.concatenate([a, np.repeat(a[-1:], pad, 0)]) for a in part]
+        out.append(np.asarray(fn(state, *part))[: len(part[0]) - pad])
+    return np.concatenate(out).astype(np.float32)
+
+
 def motion_batch(joints, mask=None, *, multiple: int = 32):
     """A batch of motions checked and padded for a jitted motion network (host-side numpy):
     ``joints [B, T, 22, 3]`` (B ≥ 1, finite on valid frames) and a prefix ``mask [B, T]``
     (None: every frame valid) -> both padded in T to a multiple of ``multiple`` (few compiled
     shapes; padded frames are invalid). ``ValueError`` names what is wrong."""
-    import numpy as np
-
     joints = np.asarray(joints, np.float32)
     if joints.ndim != 4 or joints.shape[2:] != (22, 3) or joints.shape[0] == 0:
         raise ValueError(f"joints must be [B, T, 22, 3] with B >= 1, got {joints.shape}")

@@ -32,7 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmotion.eval._common import motion_batch
+from jaxmotion.eval._common import motion_batch, run_in_chunks
 from flax import nnx
 
 from jaxmotion.constants import TEXT_ENCODER
@@ -49,11 +49,6 @@ def manifest_sha256(data_dir) -> str:
     """sha256 of ``DIR/manifest.json`` as canonical JSON (sorted keys, compact separators)."""
     text = json.dumps(load_manifest(data_dir), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
-
-
-def _padded_size(n: int) -> int:
-    """Rows a chunk of ``n`` is padded to: a power of two, at least 8 (few compiled shapes)."""
-    return max(8, 1 << max(0, n - 1).bit_length())
 
 
 class Evaluator:
@@ -96,21 +91,10 @@ class Evaluator:
                 "text_encoder", "text_encoder_sha256", "step")
         return {k: self.info.get(k) for k in keys}
 
-    def _chunks(self, fn, *arrays) -> np.ndarray:
-        n = arrays[0].shape[0]
-        out = []
-        for s in range(0, n, self.batch_size):
-            part = [a[s:s + self.batch_size] for a in arrays]
-            pad = _padded_size(len(part[0])) - len(part[0])
-            # batch padding repeats the last row (a valid input); its outputs are dropped
-            part = [np.concatenate([a, np.repeat(a[-1:], pad, 0)]) for a in part]
-            out.append(np.asarray(fn(self._state, *part))[: len(part[0]) - pad])
-        return np.concatenate(out).astype(np.float32)
-
     def encode_motion(self, joints, mask=None) -> np.ndarray:
         """``joints [B, T, 22, 3]`` (z-up, metres) and a prefix ``mask [B, T]`` -> ``[B, D]``."""
         joints, mask = motion_batch(joints, mask)
-        return self._chunks(self._motion, joints, mask)
+        return run_in_chunks(self._motion, self._state, (joints, mask), self.batch_size)
 
     def encode_text_embeddings(self, emb) -> np.ndarray:
         """MiniLM sentence embeddings ``[B, 384]`` -> ``[B, D]``."""
@@ -118,7 +102,7 @@ class Evaluator:
         if emb.ndim != 2 or emb.shape[1] != self.model.cfg.text_dim or emb.shape[0] == 0:
             raise ValueError(f"text embeddings must be [B, {self.model.cfg.text_dim}] with "
                              f"B >= 1, got {emb.shape}")
-        return self._chunks(self._text, emb)
+        return run_in_chunks(self._text, self._state, (emb,), self.batch_size)
 
     def encode_text(self, texts: list[str]) -> np.ndarray:
         """Sentences -> ``[B, D]`` (through the frozen MiniLM the evaluator was trained with)."""

@@ -33,7 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmotion.eval._common import motion_batch
+from jaxmotion.eval._common import motion_batch, run_in_chunks
 from flax import nnx
 
 from jaxmotion.models.recognizer import (ACTIONS, RECOGNIZER_VERSION, ActionRecognizer,
@@ -44,11 +44,6 @@ __all__ = ["ACTIONS", "RECOGNIZER_VERSION", "Recognizer", "action_accuracy", "ac
 
 RETRAIN = ("python -m jaxmotion.train --config configs/recognizer.py data_dir=DATA "
            "workdir=runs/recognizer")
-
-
-def padded_rows(n: int) -> int:
-    """Rows a chunk of ``n`` is padded to: a power of two, at least 8 (few compiled shapes)."""
-    return max(8, 1 << max(0, n - 1).bit_length())
 
 
 def action_ids(actions) -> np.ndarray:
@@ -112,15 +107,7 @@ class Recognizer:
         """``joints [B, T, 22, 3]`` (z-up, metres) and a prefix ``mask [B, T]`` (None: every
         frame valid) -> ``[B, 4]`` logits in the order of :data:`ACTIONS`."""
         joints, mask = motion_batch(joints, mask)
-        b = joints.shape[0]
-        out = []
-        for s in range(0, b, self.batch_size):
-            part = [joints[s:s + self.batch_size], mask[s:s + self.batch_size]]
-            extra = padded_rows(len(part[0])) - len(part[0])
-            # batch padding repeats the last row (a valid input); its outputs are dropped
-            part = [np.concatenate([a, np.repeat(a[-1:], extra, 0)]) for a in part]
-            out.append(np.asarray(self._logits(self._state, *part))[: len(part[0]) - extra])
-        return np.concatenate(out).astype(np.float32)
+        return run_in_chunks(self._logits, self._state, (joints, mask), self.batch_size)
 
     def predict(self, joints, mask=None) -> np.ndarray:
         """The recognised action of each motion: ``[B]`` int32 indices into :data:`ACTIONS`."""

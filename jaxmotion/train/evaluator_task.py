@@ -21,7 +21,21 @@ from jaxmotion.eval.evaluator import manifest_sha256
 from jaxmotion.models.evaluator import (EVALUATOR_VERSION, TextMotionEvaluator,
                                         canonical_motion_features, contrastive_loss)
 
-__all__ = ["EvaluatorTask", "MotionTextDataset"]
+__all__ = ["EvaluatorTask", "MotionTextDataset", "fit_feature_stats"]
+
+
+def fit_feature_stats(model, batches) -> dict:
+    """Set ``model.feature_mean`` / ``feature_std`` (the z-score of its input) to the statistics
+    of :func:`~jaxmotion.models.evaluator.canonical_motion_features` over the valid frames of
+    ``batches`` (dicts with ``joints [B,T,22,3]``, ``mask [B,T]``; std floored at 1e-3); returns
+    them as the tensors to export (``stats/feature_mean``, ``stats/feature_std``)."""
+    feats = jax.jit(canonical_motion_features)
+    rows = [np.asarray(feats(b["joints"], b["mask"]))[b["mask"]] for b in batches]
+    x = np.concatenate(rows).astype(np.float64)
+    model.feature_mean[...] = jnp.asarray(x.mean(0), jnp.float32)
+    model.feature_std[...] = jnp.asarray(np.maximum(x.std(0), 1e-3), jnp.float32)
+    return {"stats/feature_mean": np.asarray(model.feature_mean[...]),
+            "stats/feature_std": np.asarray(model.feature_std[...])}
 
 
 class MotionTextDataset(Dataset):
@@ -79,16 +93,9 @@ class EvaluatorTask:
         self.info = {"evaluator_version": EVALUATOR_VERSION,
                      "data_manifest_sha256": manifest_sha256(cfg.data_dir),
                      "data_kind": str(manifest.get("kind", "")), "fps": manifest.get("fps")}
-        feats = jax.jit(canonical_motion_features)
         it = self._dataset(cfg, "train").iterate(cfg.batch_size, cfg.seed + 2, prefetch=0)
-        rows = [np.asarray(feats(b["joints"], b["mask"]))[b["mask"]]
-                for b in itertools.islice(it, cfg.stats_batches)]
-        x = np.concatenate(rows).astype(np.float64)
         model = TextMotionEvaluator(cfg.model, rngs=rngs)
-        model.feature_mean[...] = jnp.asarray(x.mean(0), jnp.float32)
-        model.feature_std[...] = jnp.asarray(np.maximum(x.std(0), 1e-3), jnp.float32)
-        self.stats = {"stats/feature_mean": np.asarray(model.feature_mean[...]),
-                      "stats/feature_std": np.asarray(model.feature_std[...])}
+        self.stats = fit_feature_stats(model, itertools.islice(it, cfg.stats_batches))
         return model
 
     def train_batches(self, cfg, start_step: int):

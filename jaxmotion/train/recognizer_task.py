@@ -10,15 +10,14 @@ from __future__ import annotations
 import itertools
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
 from jaxmotion.data.format import ACTIONS, DatasetError, load_manifest, load_sample
 from jaxmotion.data.loader import Dataset
 from jaxmotion.eval.evaluator import manifest_sha256
-from jaxmotion.models.evaluator import canonical_motion_features
 from jaxmotion.models.recognizer import RECOGNIZER_VERSION, ActionRecognizer, classification_loss
+from jaxmotion.train.evaluator_task import fit_feature_stats
 
 __all__ = ["MotionActionDataset", "RecognizerTask"]
 
@@ -90,17 +89,10 @@ class RecognizerTask:
         self.info = {"recognizer_version": RECOGNIZER_VERSION, "actions": list(ACTIONS),
                      "data_manifest_sha256": manifest_sha256(cfg.data_dir),
                      "data_kind": str(manifest.get("kind", "")), "fps": manifest.get("fps")}
-        feats = jax.jit(canonical_motion_features)
         ds = self.dataset(cfg, "train")
         it = ds.iterate(min(cfg.batch_size, len(ds)), cfg.seed + 2, prefetch=0)
-        rows = [np.asarray(feats(b["joints"], b["mask"]))[b["mask"]]
-                for b in itertools.islice(it, cfg.stats_batches)]
-        x = np.concatenate(rows).astype(np.float64)
         model = ActionRecognizer(cfg.model, rngs=rngs)
-        model.feature_mean[...] = jnp.asarray(x.mean(0), jnp.float32)
-        model.feature_std[...] = jnp.asarray(np.maximum(x.std(0), 1e-3), jnp.float32)
-        self.stats = {"stats/feature_mean": np.asarray(model.feature_mean[...]),
-                      "stats/feature_std": np.asarray(model.feature_std[...])}
+        self.stats = fit_feature_stats(model, itertools.islice(it, cfg.stats_batches))
         return model
 
     def train_batches(self, cfg, start_step: int):

@@ -184,7 +184,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         chooser = AdmChooser(get_text_pipe, emb, lambda: stage_key(0), adm_sampler, opts.seed,
                              None if aot_dir is None else
                              (aot_dir, digest(versions, adm_sampler, models.text_adm)))
-        centre, chosen, how = find_region(room, text, opts.grounding, spec, view=view,
+        centre, chosen, how = find_region(room, instruction, opts.grounding, spec, view=view,
                                           adm=chooser)
         if not models.room_view:
             lap("region")

@@ -99,11 +99,12 @@ def lit(maps, instance, object_id) -> float:
     return float(maps[on].max(axis=-1).mean()) if on.any() else -1.0
 
 
-def find_region(room, text: str, grounding: str, spec, *, view=None,
+def find_region(room, text, grounding: str, spec, *, view=None,
                 adm: AdmChooser | None = None):
     """The crop square for ``text`` when no target object is given: ``(centre [2], chosen
-    object id or None, how)``. ``view``: a room-view ADM's ``(view_index, maps)``
-    (:func:`room_view_maps`); else ``adm`` runs a crop-view ADM (:func:`choose_region`).
+    object id or None, how)``; ``text``: the instruction or its
+    :class:`~jaxmotion.grounding.target.Instruction`. ``view``: a room-view ADM's
+    ``(view_index, maps)`` (:func:`room_view_maps`); else ``adm`` runs a crop-view ADM (:func:`choose_region`).
     ``how`` (:attr:`jaxmotion.result.Generation.grounding`): ``scene graph`` or ``class``
     when the text alone singled the object out, ``adm`` when the ADM chose among several,
     ``adm peak`` when the text names no object of the room."""

@@ -88,18 +88,21 @@ class Target:
                    indices=np.flatnonzero(room.instance == int(obj["id"])), how=how)
 
 
-def candidate_objects(room, text: str, grounding: str = "auto") -> tuple[list[dict], str]:
+def candidate_objects(room, text: str | Instruction,
+                      grounding: str = "auto") -> tuple[list[dict], str]:
     """The objects the region may be centred on, and how they were found: the objects of the
     category the text names (:func:`mentioned_objects`; ``"class"``), narrowed with
     ``grounding="auto"`` by the relation of the text's referring expression when it parses
     and picks some of them (:func:`jaxmotion.scene.instructions.resolve`; ``"scene graph"``).
-    ``([], "")`` when the text names no object of the room."""
-    candidates = mentioned_objects(room, text)
+    ``text``: the instruction, or the :class:`Instruction` already read from it (not read
+    again). ``([], "")`` when the text names no object of the room."""
+    instruction = text if isinstance(text, Instruction) else None
+    candidates = mentioned_objects(room, text if instruction is None else instruction.text)
     if grounding != "auto" or len(candidates) < 2:
         return candidates, "class" if candidates else ""
     from jaxmotion.scene.instructions import resolve
 
-    ref = read_instruction(text).reference
+    ref = (instruction or read_instruction(text)).reference
     if ref is None or ref.relation is None:  # not in the parser's grammar, or no relation
         return candidates, "class"
     picked = resolve(object_table(room), ref)

@@ -30,7 +30,6 @@ import sys
 import tempfile
 import time
 
-
 #: Sentences for --new-texts, in two rounds of the same kinds (the first of a kind may trace a
 #: program for its shape, e.g. the room's tiles: once per cache): the target found by class,
 #: the ADM among two candidates, no object of the room named (tiles), a target told by class.

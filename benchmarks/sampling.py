@@ -28,12 +28,17 @@ import numpy as np
 import optax
 from flax import nnx
 
-from jaxmotion.diffusion import make_schedule
-from jaxmotion.models import AMDM, ADMConfig, AMDMConfig, PointTransformerConfig, make_adm
-from jaxmotion.models import PointTransformerSeg
-from jaxmotion.pipelines.affordance import AffordancePipeline
-from jaxmotion.diffusion import SamplerSpec
+from jaxmotion.diffusion import SamplerSpec, make_schedule
+from jaxmotion.models import (
+    AMDM,
+    ADMConfig,
+    AMDMConfig,
+    PointTransformerConfig,
+    PointTransformerSeg,
+    make_adm,
+)
 from jaxmotion.models.frozen import ADMNet
+from jaxmotion.pipelines.affordance import AffordancePipeline
 
 SAMPLERS = [("DDPM-1000", "ddpm", 1000), ("DDPM-500", "ddpm", 500), ("DDIM-100", "ddim", 100),
             ("DDIM-50", "ddim", 50), ("DDIM-20", "ddim", 20), ("DDIM-10", "ddim", 10)]

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from jaxmotion.eval.runner import ModelSpec, mean_ci95, evaluate, format_markdown, parse_model
+from jaxmotion.eval.runner import ModelSpec, evaluate, format_markdown, mean_ci95, parse_model
 
 
 def test_parse_model():
@@ -73,8 +73,8 @@ def test_ground_truth_affordance_row(tiny_runs):
 def test_cases_carry_the_target_class_mask(tiny_runs):
     """The class mask (the paper's grounding target) holds every point of the target's semantic
     class: a superset of the instance mask, and exactly the class's points of the crop."""
-    from jaxmotion.data.format import load_sample
     from jaxmotion.data.cases import load_cases
+    from jaxmotion.data.format import load_sample
     from jaxmotion.models.weights import read_config
 
     root, out = tiny_runs

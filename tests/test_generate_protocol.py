@@ -7,8 +7,7 @@ import jax
 import numpy as np
 import pytest
 
-from jaxmotion.eval.runner import (ModelSpec, evaluate, format_markdown, load_eval_cases,
-                                   score_cases)
+from jaxmotion.eval.runner import ModelSpec, evaluate, format_markdown, load_eval_cases, score_cases
 
 
 def _pipe(root):
@@ -83,11 +82,11 @@ def test_exclude_keeps_the_map_off_those_points(tiny_runs):
 def test_generate_protocol_cases(tiny_runs):
     """Crops centred where generate would put them, goal points from the whole room, and
     the exclusion mask on the other objects of the chosen object's class."""
+    from jaxmotion.data.format import load_sample
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.eval.region_probe import case_regions
     from jaxmotion.grounding import find_object, object_table, same_class_others
     from jaxmotion.grounding.region import centre_on_object
-    from jaxmotion.data.format import load_sample
-    from jaxmotion.eval.region_probe import case_regions
-    from jaxmotion.diffusion import SamplerSpec
     from jaxmotion.scene import load_scene
 
     root, out = tiny_runs
@@ -212,8 +211,8 @@ def test_best_of_keeps_the_map_that_lights_the_target(tiny_runs):
 
 
 def test_best_motion_keeps_the_motion_that_reaches_the_target(tiny_runs):
-    from jaxmotion.scene.instructions import anchor_is_first
     from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.scene.instructions import anchor_is_first
 
     pipe, cases, x, emb = _two_cases(tiny_runs)
     pts, col, mask = x["points"], x["colors"], x["mask"].copy()
@@ -279,8 +278,8 @@ def _demo_chair(root):
 
 def test_adm_candidates_in_eval_and_generate(tiny_runs):
     import jaxmotion
-    from jaxmotion.eval.runner import parse_model
     from jaxmotion.errors import GenerateError
+    from jaxmotion.eval.runner import parse_model
 
     root, _ = tiny_runs
     m = parse_model("c=x,y,ddim4,adm_candidates=3")
@@ -309,8 +308,8 @@ def test_adm_candidates_in_eval_and_generate(tiny_runs):
 
 def test_motion_candidates_in_eval_and_generate(tiny_runs):
     import jaxmotion
-    from jaxmotion.eval.runner import parse_model
     from jaxmotion.errors import GenerateError
+    from jaxmotion.eval.runner import parse_model
 
     root, _ = tiny_runs
     m = parse_model("c=x,y,ddim4,adm_candidates=3,motion_candidates=2")

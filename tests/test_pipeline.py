@@ -109,9 +109,9 @@ def test_given_maps_replace_the_adm_with_the_same_motion_noise(runs):
     noise it would have had: fed the ADM's own maps back, it gives the very same motion."""
     import jax
 
-    from jaxmotion.pipelines.affordance import AffordancePipeline
-    from jaxmotion.diffusion import SamplerSpec
     from jaxmotion.data.cases import load_cases
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.pipelines.affordance import AffordancePipeline
 
     root, out = runs
     pipe = AffordancePipeline.from_workdirs(root / "adm", root / "amdm")
@@ -141,10 +141,10 @@ def test_consistency_guidance_in_the_pipeline(runs, monkeypatch):
     import jax
 
     import jaxmotion.diffusion.affordance_guidance as ag
-    from jaxmotion.data.loader import batched_affordance
-    from jaxmotion.pipelines.affordance import AffordancePipeline
-    from jaxmotion.diffusion import SamplerSpec
     from jaxmotion.data.cases import load_cases
+    from jaxmotion.data.loader import batched_affordance
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.pipelines.affordance import AffordancePipeline
 
     root, out = runs
     pipe = AffordancePipeline.from_workdirs(root / "adm", root / "amdm")

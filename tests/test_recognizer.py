@@ -11,8 +11,13 @@ from jaxmotion.config import load_config
 from jaxmotion.data.format import ACTIONS, load_sample
 from jaxmotion.data.synth import SynthSettings, build_dataset
 from jaxmotion.eval.evaluator import manifest_sha256
-from jaxmotion.eval.recognizer import (RECOGNIZER_VERSION, Recognizer, action_accuracy,
-                                       action_ids, load_recognizer)
+from jaxmotion.eval.recognizer import (
+    RECOGNIZER_VERSION,
+    Recognizer,
+    action_accuracy,
+    action_ids,
+    load_recognizer,
+)
 from jaxmotion.train import load_trained, train
 from jaxmotion.train.recognizer_task import MotionActionDataset
 from jaxmotion.train.tasks import get_task

@@ -150,9 +150,9 @@ def test_amdm_refuses_a_room_view_adm_for_its_predicted_maps(room_runs, tmp_path
 
 
 def test_room_view_cases_and_sampling(room_runs, tmp_path):
-    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
-    from jaxmotion.diffusion import SamplerSpec
     from jaxmotion.data.cases import case_inputs, load_cases
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
     from jaxmotion.sample import sample_split
 
     root, data, work, _, _ = room_runs
@@ -207,9 +207,9 @@ def test_room_view_eval_and_probe(room_runs):
                        batch_size=4)
     # the probe picks its cases on the ADM's view: several objects of the target's class there,
     # and a closest / farthest relation
+    from jaxmotion.data.cases import load_cases
     from jaxmotion.eval.relation_probe import canonical_pair
     from jaxmotion.pipelines.affordance import AffordancePipeline
-    from jaxmotion.data.cases import load_cases
 
     pipe = AffordancePipeline.from_workdirs(work, root / "amdm")
     want = 0

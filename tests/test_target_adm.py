@@ -97,9 +97,9 @@ def test_target_drop_is_validated():
 
 
 def test_pipeline_tells_a_target_reading_adm_the_target(target_run):
-    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
-    from jaxmotion.diffusion import SamplerSpec
     from jaxmotion.data.cases import case_inputs, load_cases
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
 
     root, data, work, _, _ = target_run
     pipe = AffordancePipeline.from_workdirs(work, root / "amdm")

@@ -187,8 +187,8 @@ def word_runs(tiny_runs, tmp_path_factory):
 
 
 def test_word_level_training_and_sampling(word_runs, tmp_path):
-    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
     from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
     from jaxmotion.sample import sample_split
 
     root, data, runs = word_runs

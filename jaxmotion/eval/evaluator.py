@@ -31,15 +31,19 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-
-from jaxmotion.eval._common import motion_batch, run_in_chunks
 from flax import nnx
 
 from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.data.format import load_manifest
-from jaxmotion.eval.text_motion_metrics import (diversity, fid, multimodal_distance,
-                                                multimodality, r_precision)
-from jaxmotion.models.evaluator import (EVALUATOR_VERSION, EvaluatorConfig, TextMotionEvaluator)
+from jaxmotion.eval._common import motion_batch, run_in_chunks
+from jaxmotion.eval.text_motion_metrics import (
+    diversity,
+    fid,
+    multimodal_distance,
+    multimodality,
+    r_precision,
+)
+from jaxmotion.models.evaluator import EVALUATOR_VERSION, EvaluatorConfig, TextMotionEvaluator
 
 __all__ = ["EVALUATOR_VERSION", "Evaluator", "load_evaluator", "manifest_sha256",
            "text_motion_scores"]

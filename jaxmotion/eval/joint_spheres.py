@@ -19,10 +19,10 @@ import jax.numpy as jnp
 from jaxmotion.eval._common import safe_norm
 from jaxmotion.eval.body_metrics import (
     CONTACT_THRESHOLD,
-    check_target,
-    min_penetration_gap,
     anchor_index,
+    check_target,
     contact,
+    min_penetration_gap,
     non_collision,
 )
 from jaxmotion.geometry.skeleton import JOINT_NAMES

@@ -32,6 +32,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxmotion.eval._common import as_mask, masked_mean, require_any, require_nonempty, safe_norm
+from jaxmotion.eval.action_judge import action_id, action_report, judge_action, judge_actions
 from jaxmotion.eval.body_metrics import (
     CONTACT_THRESHOLD,
     anchor_goal_distance,
@@ -56,7 +57,6 @@ from jaxmotion.eval.joint_spheres import (
     joints_goal_distance,
     joints_physical_metrics,
 )
-from jaxmotion.eval.action_judge import action_id, action_report, judge_action, judge_actions
 from jaxmotion.eval.plausibility import (
     PLAUSIBILITY_KEYS,
     TELEPORT_JOINT_SPEED,

@@ -32,12 +32,15 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-
-from jaxmotion.eval._common import motion_batch, run_in_chunks
 from flax import nnx
 
-from jaxmotion.models.recognizer import (ACTIONS, RECOGNIZER_VERSION, ActionRecognizer,
-                                         RecognizerConfig)
+from jaxmotion.eval._common import motion_batch, run_in_chunks
+from jaxmotion.models.recognizer import (
+    ACTIONS,
+    RECOGNIZER_VERSION,
+    ActionRecognizer,
+    RecognizerConfig,
+)
 
 __all__ = ["ACTIONS", "RECOGNIZER_VERSION", "Recognizer", "action_accuracy", "action_ids",
            "load_recognizer"]

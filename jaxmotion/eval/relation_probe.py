@@ -63,10 +63,10 @@ def relation_probe(data_dir, adm, amdm, *, splits=("val", "test"), num_cases: in
     """
     import jax
 
+    from jaxmotion.data.cases import load_cases
+    from jaxmotion.diffusion import SamplerSpec
     from jaxmotion.eval.metrics import affordance_grounding_from_map
     from jaxmotion.pipelines.affordance import AffordancePipeline
-    from jaxmotion.diffusion import SamplerSpec
-    from jaxmotion.data.cases import load_cases
     from jaxmotion.text import load_text_encoder
 
     pipe = AffordancePipeline.from_workdirs(adm, amdm)

@@ -191,9 +191,16 @@ def physical_fn(body: bool, fps: float):
     ``goal_points``, the rest to ``points``."""
     import jax
 
-    from jaxmotion.eval.metrics import (apd, contact, foot_skating, goal_distance,
-                                        joint_sphere_sdf_frames, joints_goal_distance,
-                                        non_collision, signed_distance_to_body_frames)
+    from jaxmotion.eval.metrics import (
+        apd,
+        contact,
+        foot_skating,
+        goal_distance,
+        joint_sphere_sdf_frames,
+        joints_goal_distance,
+        non_collision,
+        signed_distance_to_body_frames,
+    )
 
     def one(points, goal_points, target_mask, joints, mask, anchor, verts, normals):
         if body:
@@ -375,9 +382,9 @@ def evaluate(
     import jax
     from tqdm.auto import tqdm
 
-    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
-    from jaxmotion.diffusion import SamplerSpec
     from jaxmotion.data.cases import case_inputs
+    from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.pipelines.affordance import AffordancePipeline, take_text
     from jaxmotion.scene.instructions import anchor_is_first
     from jaxmotion.text import load_text_encoder
 

@@ -32,8 +32,12 @@ from flax import nnx
 
 from jaxmotion.data.format import ACTIONS
 from jaxmotion.models.configs import Presets
-from jaxmotion.models.evaluator import (FEATURE_DIM, FeatureStats, canonical_motion_features,
-                                        motion_lengths)
+from jaxmotion.models.evaluator import (
+    FEATURE_DIM,
+    FeatureStats,
+    canonical_motion_features,
+    motion_lengths,
+)
 
 __all__ = ["ACTIONS", "RECOGNIZER_VERSION", "ActionRecognizer", "RecognizerConfig",
            "classification_loss", "valid_tokens"]

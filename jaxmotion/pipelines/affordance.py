@@ -130,7 +130,12 @@ class AffordancePipeline:
         from jaxmotion.diffusion import make_schedule
         from jaxmotion.models import AMDM, AMDMConfig
         from jaxmotion.models.frozen import load_adm
-        from jaxmotion.models.weights import abstract_module, apply_weights, load_weights, read_config
+        from jaxmotion.models.weights import (
+            abstract_module,
+            apply_weights,
+            load_weights,
+            read_config,
+        )
 
         adm_net, adm_sched, adm_stats = load_adm(adm_file)
         m_src = Path(amdm_file)

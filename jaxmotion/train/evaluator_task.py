@@ -18,8 +18,12 @@ from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.data.format import DatasetError, load_manifest, load_sample
 from jaxmotion.data.loader import Dataset
 from jaxmotion.eval.evaluator import manifest_sha256
-from jaxmotion.models.evaluator import (EVALUATOR_VERSION, TextMotionEvaluator,
-                                        canonical_motion_features, contrastive_loss)
+from jaxmotion.models.evaluator import (
+    EVALUATOR_VERSION,
+    TextMotionEvaluator,
+    canonical_motion_features,
+    contrastive_loss,
+)
 
 __all__ = ["EvaluatorTask", "MotionTextDataset", "fit_feature_stats"]
 

@@ -43,8 +43,8 @@ from jax.sharding import NamedSharding
 from jax.sharding import PartitionSpec as P
 
 from jaxmotion.config import config_from_dict, config_to_dict, save_config_json
-from jaxmotion.train.checkpoint import Checkpointer
 from jaxmotion.models.weights import save_weights
+from jaxmotion.train.checkpoint import Checkpointer
 from jaxmotion.train.metrics import MetricsWriter
 
 __all__ = ["Task", "TrainResult", "make_optimizer", "train"]

@@ -196,8 +196,8 @@ class ADMTask(DataTask):
     def probe_batches(self, cfg) -> list[dict]:
         """The first ``grounding_cases`` val crops (as the paper protocol crops them), in
         batches of ``batch_size``; the last is padded with ``valid`` False rows."""
-        from jaxmotion.diffusion import SamplerSpec
         from jaxmotion.data.cases import load_cases
+        from jaxmotion.diffusion import SamplerSpec
 
         self.probe_spec = SamplerSpec("ddim", int(cfg.grounding_steps),
                                       guidance=float(cfg.grounding_guidance))

@@ -10,8 +10,10 @@ in m/s, accelerations in m/s², squared errors) to the x0 loss: without them the
 motion finer than ~0.3 s as holds and jumps. ``geometric_weighting=signal`` scales each
 example's terms by its signal level ᾱ_t, so they act where the fine detail is decided (low
 noise) and do not pull the blurry high-noise estimates towards stillness. ``init_from=FILE`` starts from another AMDM's
-weights (workdir or ``.safetensors``; same model config) and keeps its normalisation
-statistics, so a fine-tune continues the same function.
+weights (workdir or ``.safetensors``; same model config, except ``model.temporal_basis``, which
+has no parameters) and keeps its normalisation statistics, so a fine-tune continues the same
+function. ``model.temporal_basis=K`` builds the predicted motion from the first K cosines of
+its frames (:class:`~jaxmotion.models.AMDMConfig`): the shipped AMDM's setting, K = 32.
 
     python -m jaxmotion.train --config configs/amdm.py data_dir=data/synth workdir=runs/amdm \
         adm_workdir=runs/adm [preset=tiny|default|paper] [key=value ...]

@@ -212,6 +212,7 @@ def test_best_of_keeps_the_map_that_lights_the_target(tiny_runs):
 
 def test_best_motion_keeps_the_motion_that_reaches_the_target(tiny_runs):
     from jaxmotion.diffusion import SamplerSpec
+    from jaxmotion.eval.plausibility import plausibility
     from jaxmotion.scene.instructions import anchor_is_first
 
     pipe, cases, x, emb = _two_cases(tiny_runs)
@@ -231,12 +232,13 @@ def test_best_motion_keeps_the_motion_that_reaches_the_target(tiny_runs):
         np.testing.assert_allclose(motions[b, 1], one, atol=2e-3)
     anchor_first = np.array([False, True])
     got = np.asarray(pipe.best_motion(key, pts, aff, emb, mask, spec, target, anchor_first, 3))
-    for b in range(2):  # brute force: the closest joint-to-target distance at the anchor
-        valid = np.flatnonzero(mask[b])
+    for b in range(2):  # brute force: the closest joint-to-target distance at the anchor,
+        valid = np.flatnonzero(mask[b])  # among the candidates that do not teleport if any
         t = valid[0] if anchor_first[b] else valid[-1]
-        scores = [min(np.linalg.norm(p - j) for p in pts[b][target[b]] for j in m[t])
-                  for m in motions[b]]
-        np.testing.assert_allclose(got[b], motions[b, int(np.argmin(scores))], atol=1e-5)
+        jumps = np.asarray(plausibility(motions[b], np.repeat(mask[b][None], 3, 0))["teleport"])
+        scores = [(bool(jump), min(np.linalg.norm(p - j) for p in pts[b][target[b]] for j in m[t]))
+                  for m, jump in zip(motions[b], jumps)]
+        np.testing.assert_allclose(got[b], motions[b, scores.index(min(scores))], atol=1e-5)
     none = np.asarray(pipe.best_motion(key, pts, aff, emb, mask, spec, np.zeros_like(target),
                                        anchor_first, 3))
     np.testing.assert_allclose(none, first, atol=2e-3)  # no target: the first motion
@@ -251,6 +253,33 @@ def test_best_motion_keeps_the_motion_that_reaches_the_target(tiny_runs):
     assert anchor_is_first("stand up") and anchor_is_first("Rise from the stool!")
     assert not anchor_is_first("sit on the chair next to the table")
     assert not anchor_is_first("walk up to the stool")
+
+
+def test_best_motion_never_keeps_a_jump_while_a_smooth_candidate_exists(tiny_runs, monkeypatch):
+    from jaxmotion.diffusion import SamplerSpec
+
+    pipe, cases, x, emb = _two_cases(tiny_runs)
+    pts, mask = x["points"], x["mask"]
+    target = np.stack([c["target_mask"] for c in cases])
+    t = mask.shape[1]
+    centre = np.stack([p[m].mean(0) for p, m in zip(pts, target)])  # [2, 3]
+    walk = np.linspace(0.0, 1.0, t)[:, None]  # 1 m over the motion: 0.25 m/s or so
+    smooth = centre[:, None, None] + np.array([0.3, 0, 0]) + np.array([0.6, 0, 0]) * (
+        1 - walk)[None, :, None]  # ends 0.3 m off the target's centre
+    jump = np.repeat(centre[:, None, None], t, 1) + np.zeros((1, 1, 22, 3))
+    jump[:, : t // 2] += np.array([1.5, 0, 0])  # at the target at the end, but 1.5 m in a frame
+    smooth = np.broadcast_to(smooth, jump.shape)
+    candidates = np.stack([jump, smooth, jump + 0.4], axis=1).astype(np.float32)  # [2,3,T,22,3]
+    monkeypatch.setattr(pipe, "sample_motions", lambda *a, **k: candidates)
+    spec = SamplerSpec("ddim", 2)
+    got = np.asarray(pipe.best_motion(jax.random.key(0), pts, x["colors"], emb, mask, spec,
+                                      target, None, 3))
+    np.testing.assert_array_equal(got, candidates[:, 1])  # the smooth one, though farther
+    only_jumps = np.stack([jump, jump + 0.4, jump], axis=1).astype(np.float32)
+    monkeypatch.setattr(pipe, "sample_motions", lambda *a, **k: only_jumps)
+    got = np.asarray(pipe.best_motion(jax.random.key(0), pts, x["colors"], emb, mask, spec,
+                                      target, None, 3))
+    np.testing.assert_array_equal(got, only_jumps[:, 0])  # all jump: the closest
 
 
 def _generate_protocol_only(tiny_runs, **option):

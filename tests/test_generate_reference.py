@@ -5,10 +5,12 @@ checkpoints before the package was restructured into stages (grounding / pipelin
 the restructuring changed where code lives, not what it computes. Each case is one way of
 finding the target: the only object of its class (demo room), the scene graph's relation,
 ``object_id``, the ADM among several candidates, and the room's tiles (no object named).
-The joints were recorded by the old code (commit 34eaf24) under the XLA flags of
-``tests/conftest.py`` (``--xla_cpu_multi_thread_eigen=false``: threading changes the order of
-float sums, so the flags are part of "the same computation"). Regenerate the file only for a
-deliberate change of behaviour, and say so in ``docs/results.md``.
+The joints are recorded under the XLA flags of ``tests/conftest.py``
+(``--xla_cpu_multi_thread_eigen=false``: threading changes the order of float sums, so the
+flags are part of "the same computation"). Regenerate the file only for a deliberate change
+of behaviour (``python tests/test_generate_reference.py --record``, which sets the same flags),
+and say so in ``docs/results.md``. Recorded: by commit 34eaf24 before the restructuring; again
+when the motion selection stopped keeping jumps and the AMDM changed (issue 20).
 """
 
 from __future__ import annotations
@@ -56,3 +58,30 @@ def test_synthetic_room_is_unchanged(room, name):
     text, object_id, seed = CASES[name]
     r = jaxmotion.generate(room, text, samples=1, seed=seed, fit=False, object_id=object_id)
     np.testing.assert_array_equal(r.joints, np.load(REFERENCE)[name])
+
+
+def record() -> None:
+    """Write the reference file from the current code and checkpoints."""
+    import jaxmotion
+    from jaxmotion.scene.rooms import room_to_scene, sample_room
+
+    out = {"demo": jaxmotion.generate("demo", "sit on the chair next to the table", samples=2,
+                                      seed=3, fit=False).joints}
+    scene = room_to_scene(sample_room(ROOM_SEED), 20000, np.random.default_rng(ROOM_SEED))
+    scene = dataclasses.replace(scene, name=f"room{ROOM_SEED}")
+    for name, (text, object_id, seed) in CASES.items():
+        out[name] = jaxmotion.generate(scene, text, samples=1, seed=seed, fit=False,
+                                       object_id=object_id).joints
+        print(name, out[name].shape, flush=True)
+    np.savez_compressed(REFERENCE, **out)
+    print(f"wrote {REFERENCE}")
+
+
+if __name__ == "__main__":
+    import os
+    import sys
+
+    if sys.argv[1:] != ["--record"]:
+        sys.exit("usage: python tests/test_generate_reference.py --record")
+    os.environ["XLA_FLAGS"] = "--xla_cpu_multi_thread_eigen=false"  # as tests/conftest.py
+    record()

@@ -26,6 +26,11 @@ gives pre-norm.
 ``n_cross = min(stages, max(1, num_layers - 1))``: 4 of 5 in the paper size) a transformer
 decoder layer (self-attention, cross-attention, feed-forward) attends to stage features
 coarsest first, each projected by Linear + LayerNorm, as the authors' ``trans_dec``.
+
+With ``temporal_basis=K`` the per-frame output is replaced by its least-squares fit by the first
+K cosines of the valid frames (:func:`~jaxmotion.models.layers.low_frequency_projection`), so
+the x0 prediction, and with it every sample, is built from K smooth components; trained with
+it, the network learns the motion in that basis (padded frames come out 0).
 """
 
 from __future__ import annotations
@@ -35,7 +40,8 @@ from flax import nnx
 
 from jaxmotion.models.configs import AMDMConfig
 from jaxmotion.models.layers import (TimestepEmbedder, TransformerDecoderLayer,
-                                     TransformerEncoderLayer, sinusoidal_embedding)
+                                     TransformerEncoderLayer, low_frequency_projection,
+                                     sinusoidal_embedding)
 from jaxmotion.models.point_transformer import PointTransformerEncoder, PointTransformerUNet
 
 __all__ = ["AMDM"]
@@ -134,4 +140,7 @@ class AMDM(nnx.Module):
             if i < self.n_cross:
                 mem = self.memory_norm[i](self.memory_proj[i](tokens[i] * keep))
                 seq = self.cross_layers[i](seq, mem, seq_mask, None, deterministic=det)
-        return self.motion_out(seq[:, n_prefix:])
+        out = self.motion_out(seq[:, n_prefix:])
+        if cfg.temporal_basis:
+            out = low_frequency_projection(out, mask, cfg.temporal_basis)
+        return out

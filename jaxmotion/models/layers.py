@@ -21,7 +21,7 @@ from flax import nnx
 __all__ = [
     "sinusoidal_embedding", "TimestepEmbedder", "MLP", "MultiHeadAttention",
     "TransformerEncoderLayer", "TransformerDecoderLayer", "PerceiverLayer", "activation",
-    "param_count",
+    "param_count", "dct_basis", "low_frequency_projection",
 ]
 
 _NEG = -1e30  # finite "minus infinity" for masked logits
@@ -47,6 +47,28 @@ def sinusoidal_embedding(positions: jax.Array, dim: int, max_period: float = 100
     freqs = jnp.exp(-math.log(max_period) * jnp.arange(0, dim, 2, dtype=jnp.float32) / dim)
     ang = jnp.asarray(positions, jnp.float32)[..., None] * freqs
     return jnp.stack([jnp.sin(ang), jnp.cos(ang)], axis=-1).reshape(*ang.shape[:-1], dim)
+
+
+def dct_basis(lengths: jax.Array, num_frames: int, k: int) -> jax.Array:
+    """Orthonormal DCT-II rows ``[B, k, num_frames]`` over each sequence's first ``lengths[b]``
+    frames (zero beyond them, and for the rows ``>= lengths[b]``, which would alias)."""
+    n = jnp.arange(num_frames, dtype=jnp.float32)[None, None, :]
+    rows = jnp.arange(k, dtype=jnp.float32)[None, :, None]
+    length = jnp.maximum(jnp.asarray(lengths, jnp.float32), 1.0)[:, None, None]
+    scale = jnp.sqrt(2.0 / length) * jnp.where(rows == 0, math.sqrt(0.5), 1.0)
+    basis = jnp.cos(math.pi * (n + 0.5) * rows / length) * scale
+    return jnp.where((n < length) & (rows < length), basis, 0.0)
+
+
+def low_frequency_projection(x: jax.Array, mask: jax.Array, k: int) -> jax.Array:
+    """``x [B, T, D]`` projected, per sequence, onto the first ``k`` cosines (DCT-II) of its valid
+    frames (``mask [B, T]``, a prefix of each row): the closest sequence, in the least-squares
+    sense, whose content is slower than ``k / (2 · length)`` cycles per frame. Padded frames
+    come out 0. Linear, and exact for constants, so it commutes with per-channel affine
+    normalisation; ``k >= length`` returns the valid frames unchanged."""
+    lengths = jnp.sum(jnp.asarray(mask, jnp.int32), axis=1)
+    basis = dct_basis(lengths, x.shape[1], k)
+    return jnp.einsum("bkt,bkd->btd", basis, jnp.einsum("bkt,btd->bkd", basis, x))
 
 
 def param_count(module: nnx.Module) -> int:

@@ -426,10 +426,17 @@ class AffordancePipeline:
         ``[B,N]`` (the points of a known target object) at the anchor frame: the first valid
         frame where ``anchor_first [B]`` (getting up from the object,
         :func:`jaxmotion.scene.instructions.anchor_is_first`; None: all False), else the
-        last. Closeness is the smallest distance between a joint and a target point. An
-        example with no target point keeps the first."""
+        last. Closeness is the smallest distance between a joint and a target point. A motion
+        that teleports (:func:`jaxmotion.eval.plausibility.plausibility`) is never kept while
+        one of its example's candidates does not: proximity is never bought with a jump. An
+        example with no target point keeps the first plausible candidate."""
+        from jaxmotion.eval.plausibility import plausibility
+
         motions = self.sample_motions(key, points, feats, text_emb, mask, spec, candidates)
         mask = jnp.asarray(mask, bool)
+        b, m = motions.shape[:2]
+        jumps = plausibility(motions.reshape(b * m, *motions.shape[2:]),
+                             jnp.repeat(mask, m, axis=0))["teleport"].reshape(b, m)
         t_last = mask.shape[1] - 1 - jnp.argmax(mask[:, ::-1], axis=1)
         first = (jnp.zeros(mask.shape[0], bool) if anchor_first is None
                  else jnp.asarray(anchor_first, bool))
@@ -438,7 +445,9 @@ class AffordancePipeline:
         d = jnp.linalg.norm(jnp.asarray(points)[:, None, :, None] - pose[:, :, None], axis=-1)
         t = jnp.asarray(target, bool)[:, None, :, None]  # [B,1,N,1]
         score = jnp.where(t, d, jnp.inf).min(axis=(2, 3))  # [B,C]
-        best = jnp.argmin(score, axis=1)  # ties (no target): the first
+        score = jnp.where(jnp.isfinite(score), score, 0.0)  # no target point: all tie
+        smooth = ~jumps | jnp.all(jumps, axis=1, keepdims=True)  # all jump: all compete
+        best = jnp.argmin(jnp.where(smooth, score, jnp.inf), axis=1)  # ties: the first
         return jnp.take_along_axis(motions, best[:, None, None, None, None], axis=1)[:, 0]
 
     @staticmethod

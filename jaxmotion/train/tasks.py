@@ -367,8 +367,9 @@ class AMDMTask(DataTask):
 
         path, tensors, saved = _read_init(cfg, "amdm")
         mine = config_to_dict(cfg.model)
+        # temporal_basis has no parameters: a fine-tune may switch it on
         diff = [f"{k} ({saved['model'].get(k)!r} vs {mine[k]!r})" for k in sorted(mine)
-                if saved["model"].get(k, mine[k]) != mine[k]]
+                if saved["model"].get(k, mine[k]) != mine[k] and k != "temporal_basis"]
         if diff:
             raise ValueError(f"init_from={cfg.init_from}: its model config differs in "
                              f"{', '.join(diff)}; pass the same model.* settings")

@@ -197,7 +197,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
                       body=not args.joints_only, evaluator=args.evaluator,
                       recognizer=args.recognizer,
                       vertex_stride=args.vertex_stride, batch_size=args.batch_size,
-                      protocol=args.protocol, grounding=args.grounding)
+                      protocol=args.protocol, grounding=args.grounding,
+                      keep_motions=args.save_motions)
     paths = write_report(report, args.out)
     print(format_markdown(report))
     print(f"wrote {paths[0]} and {paths[1]}", file=sys.stderr)
@@ -375,6 +376,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --protocol generate: how the region is found, as `jaxmotion "
                    "generate --grounding` (default auto)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--save-motions", action="store_true",
+                   help="also write the sampled joints to OUT/motions.npz (per model, in each "
+                   "case's crop frame, with the crop's rotation and shift), to look at them")
     p.add_argument("--out", default="results", help="output folder (default: results)")
     p.set_defaults(func=_cmd_eval)
 

@@ -5,7 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from jaxmotion.eval.runner import ModelSpec, evaluate, format_markdown, mean_ci95, parse_model
+from jaxmotion.eval.runner import (ModelSpec, evaluate, format_markdown, mean_ci95, parse_model,
+                                   write_report)
 
 
 def test_parse_model():
@@ -43,15 +44,22 @@ def test_parse_model_consistency():
             parse_model(bad)
 
 
-def test_ground_truth_affordance_row(tiny_runs):
+def test_ground_truth_affordance_row(tiny_runs, tmp_path):
     """affordance=gt: the AMDM on the dataset's own maps; its own row, no grounding columns
-    (there are no ADM maps to score)."""
+    (there are no ADM maps to score). keep_motions: the joints come back, and to motions.npz."""
     root, out = tiny_runs
     adm, amdm = str(root / "adm"), str(root / "amdm")
     specs = [ModelSpec("adm", adm, amdm, "ddim", 2),
              ModelSpec("oracle", adm, amdm, "ddim", 2, affordance="gt")]
     rep = evaluate(out["data"], specs, num_cases=2, samples=2, replications=1, body=False,
-                   batch_size=4, progress=False)
+                   batch_size=4, progress=False, keep_motions=True)
+    write_report(rep, tmp_path)
+    saved = np.load(tmp_path / "motions.npz")
+    assert saved["adm/joints"].shape == (1, 2, 2, *saved["mask"].shape[1:], 22, 3)
+    np.testing.assert_array_equal(saved["oracle/joints"], rep["models"]["oracle"]["motions"])
+    assert list(saved["files"]) == [c["file"] for c in rep["models"]["adm"]["cases"]]
+    assert saved["rotation"].shape == (2, 3, 3) and "motions" not in (
+        tmp_path / "results.json").read_text()
     o = rep["models"]["oracle"]
     assert o["affordance"] == "ground truth" and rep["models"]["adm"]["affordance"] == "adm"
     assert "success@0.3" not in o["summary"] and np.isfinite(o["summary"]["goal_distance"]["mean"])

@@ -372,11 +372,15 @@ def evaluate(
     protocol: str = "paper",
     grounding: str = "auto",
     progress: bool = True,
+    keep_motions: bool = False,
 ) -> dict:
     """Evaluate ``models`` on the first ``num_cases`` cases of ``split``; see the module
     docstring (``protocol``: ``paper`` or ``generate``; ``grounding``: how the generate
     protocol finds the region, ``auto`` or ``adm``, as ``jaxmotion generate --grounding``).
     Returns a JSON-ready dict: settings, and per model its sampler, per-replication metrics and ``summary`` ``{metric: {mean, ci95, n}}``. With ``ground_truth`` the dataset's
+    With ``keep_motions`` each model's entry also holds ``motions``: the sampled joints
+    ``[R, C, K, T, 22, 3]`` in each case's crop frame (:func:`write_report` writes them to
+    ``motions.npz``, with what maps them back to the room). With ``ground_truth`` the dataset's
     own motions are scored the same way (``report["ground_truth"]``: the metrics' ceiling on
     this data; APD is 0 with one motion per case)."""
     import jax
@@ -455,7 +459,7 @@ def evaluate(
             gt_maps = np.asarray(jax.device_get(batched_affordance(pipe.sigma)(
                 np.stack([c["points"] for c in cases]), np.stack([c["gt"] for c in cases]),
                 np.stack([c["mask"] for c in cases]))))
-        reps, fit_errors, case_rows = [], [], []
+        reps, fit_errors, case_rows, kept = [], [], [], []
         for r in range(replications):
             key = jax.random.fold_in(jax.random.key(seed), r)
             rows = [(ci, k) for ci in range(len(cases)) for k in range(samples)]
@@ -478,6 +482,8 @@ def evaluate(
                     joints[ci, k] = res["joints"][j]
                     if two_stage:
                         affs[ci][k] = res["affordance"][j]
+            if keep_motions:
+                kept.append(joints)
             grounded = two_stage and not oracle  # ground-truth maps are not scored
             per_case = score_cases(cases, joints, affs if grounded else None, phys, body, fps,
                                    fit_errors, bar, vertex_stride, recognizer)
@@ -512,6 +518,13 @@ def evaluate(
             "seconds": time.perf_counter() - t_model,
             "cases": case_rows,
         }
+        if keep_motions:
+            report["models"][spec.name]["motions"] = np.stack(kept)
+            report.setdefault("case_frames", {
+                "files": [c["file"] for c in cases], "texts": [c["text"] for c in cases],
+                "actions": [c["action"] for c in cases], "mask": np.stack([c["mask"] for c in cases]),
+                "rotation": np.stack([np.asarray(c["rotation"]) for c in cases]),
+                "shift": np.stack([np.asarray(c["shift"]) for c in cases])})
         if regions is not None:
             report["models"][spec.name]["regions"] = _region_summary(regions)
     if ground_truth:
@@ -680,13 +693,23 @@ def write_report(report: dict, out) -> tuple[Path, Path]:
 
     ``cases.jsonl`` holds one JSON line per model, replication and case (see
     :func:`_case_row`): the per-case metrics behind the means, to find where a model fails;
-    ``results.json`` holds everything else."""
+    ``results.json`` holds everything else. A report of ``evaluate(keep_motions=True)`` also
+    gives ``out/motions.npz``: per model ``<name>/joints`` ``[R, C, K, T, 22, 3]`` in each
+    case's crop frame, and per case ``files``, ``texts``, ``actions``, ``mask`` and the crop's
+    ``rotation`` / ``shift`` (a crop point ``p`` is the room point ``p @ rotation + shift``)."""
     from jaxmotion._atomic import atomic_open
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    models = {name: {k: v for k, v in m.items() if k != "cases"}
+    models = {name: {k: v for k, v in m.items() if k not in ("cases", "motions")}
               for name, m in report["models"].items()}
+    if "case_frames" in report:
+        arrays = {k: np.asarray(v) for k, v in report["case_frames"].items()}
+        arrays.update({f"{name}/joints": m["motions"] for name, m in report["models"].items()
+                       if "motions" in m})
+        with atomic_open(out / "motions.npz", "wb") as f:
+            np.savez_compressed(f, **arrays)
+    report = {k: v for k, v in report.items() if k != "case_frames"}
     with atomic_open(out / "cases.jsonl", "w") as f:
         for m in report["models"].values():
             for row in m.get("cases", []):

@@ -289,10 +289,17 @@ def score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: l
     return rows
 
 
+#: The geometric judge's checks and measures at the anchor frame that ``cases.jsonl`` carries
+#: per case (``judge/<name>``: the mean over the case's motions).
+JUDGE_DETAILS = ("over_footprint", "seat_height_ok", "lie_height_ok", "torso_upright",
+                 "torso_horizontal", "knees_bent", "standing_height", "feet_on_floor",
+                 "near_box", "pelvis_box_xy_distance", "pelvis_above_surface")
+
+
 def _action_columns(case, joints, recognizer) -> dict:
     """The share of the K motions ``joints [K,T,22,3]`` that do the case's action on its
-    target, by the geometric judge (``action_judged``) and by the recognizer
-    (``action_recognized``, with one)."""
+    target, by the geometric judge (``action_judged``, and its checks as ``judge/<name>``,
+    :data:`JUDGE_DETAILS`) and by the recognizer (``action_recognized``, with one)."""
     import jax
 
     from jaxmotion.eval.action_judge import judge_actions
@@ -311,6 +318,8 @@ def _action_columns(case, joints, recognizer) -> dict:
             joints, mask, [case["action"]] * k, np.tile(lo, (k, 1)), np.tile(hi, (k, 1)),
             np.broadcast_to(pts, (k, *pts.shape)), surface_height=np.full(k, surface)))
         out["action_judged"] = float(np.mean(rep["success"]))
+        for name in JUDGE_DETAILS:  # which of the judge's checks fail, to see why
+            out[f"judge/{name}"] = float(np.nanmean(np.asarray(rep[name], np.float64)))
     if recognizer is not None:
         from jaxmotion.eval.recognizer import action_accuracy
 

@@ -1,0 +1,87 @@
+#!/bin/bash
+# One device call of an ADM (TASK=adm, the default) or AMDM (TASK=amdm) training run on a lent
+# GPU machine (see docs/results.md, "Fine-tuning the ADM on a GPU"). Idempotent: call it again and again (each call at most 10 minutes) while
+# the machine stays warm; each call does what is left:
+#   1. install the staged wheels (scripts/device/prepare.sh) into /tmp/site;
+#   2. build the grown dataset (SCENES rooms, the first SPLIT split as before, the rest train)
+#      with every CPU, JAX on the CPU (16 processes must not each take the GPU);
+#   3. fill the text caches (scripts/device/encode_texts.py);
+#   4. start training in its own session (setsid: it outlives the call while the machine is
+#      held), resuming from .dev/run/ (unpacked from a previous call's files) on a fresh machine;
+#   5. wait until LIMIT seconds have passed (or training ended), then copy the run's small files
+#      to $OUT: the exported weights, best.json, metrics.jsonl, the logs. Each file there must be
+#      under 16 MB, so the Orbax checkpoint (16+ MB with the optimiser state) stays behind:
+#      resume on a fresh machine with init_from=<model.safetensors> instead.
+# Device call:  LIMIT=550 [TASK=amdm] bash scripts/device/train.sh      (carry: [".dev"])
+# Settings (environment): TASK, SCENES, SPLIT, D (work folder there), TRAIN_ARGS (key=value
+# overrides appended to the defaults below, e.g. "crop.centre=room crop.size=8" for the room view,
+# or "model.target_input=true" for the ADM that reads a known target, shipped since session 11).
+# TASK=amdm trains the AMDM on the shipped ADM's maps (half the batches) with the temporal basis
+# of the plausibility issue (model.temporal_basis=16), from scratch; add
+# TRAIN_ARGS="init_from=$PWD/jaxmotion/assets/amdm.safetensors" to fine-tune the shipped one.
+set -u
+export PYTHONUNBUFFERED=1
+T0=$(date +%s)
+LIMIT=${LIMIT:-550}
+TASK=${TASK:-adm}
+SCENES=${SCENES:-5000}
+SPLIT=${SPLIT:-2000}
+D=${D:-/root/jm}
+PY=${PY:-python3}
+OUT=${OUT:?set OUT, the folder whose files come back}
+mkdir -p "$D" "$OUT"
+NW=$(ls .dev/whl | wc -l)
+if [ ! -f "/tmp/site/.ok$NW" ]; then
+  $PY -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
+    --target /tmp/site .dev/whl/*.whl && touch "/tmp/site/.ok$NW" || exit 1
+fi
+export PYTHONPATH=/tmp/site:$PWD JAXMOTION_MINILM_DIR=$PWD/.dev/minilm16 JAXMOTION_CACHE=$D/xla
+echo "== $(date +%T) start; $(nproc) cpus"
+$PY -c "import jax, flax; print('jax', jax.__version__, jax.devices(), 'flax', flax.__version__)" || exit 1
+if [ ! -f "$D/synth/manifest.json" ]; then
+  echo "== $(date +%T) synth $SCENES rooms (split over the first $SPLIT)"
+  JAX_PLATFORMS=cpu timeout $((LIMIT - 45 - ($(date +%s) - T0))) $PY -m jaxmotion synth \
+    --out "$D/synth" --scenes "$SCENES" --split-scenes "$SPLIT" --per-scene 10 --seed 0 \
+    --workers "$(nproc)" --no-stats > "$D/synth.log" 2>&1
+  tail -c 300 "$D/synth.log"; echo
+fi
+if [ -f "$D/synth/manifest.json" ]; then
+  [ -f "$D/synth/stats.npz" ] || cp .dev/stats.npz "$D/synth/stats.npz"
+  if [ ! -f "$D/encoded" ]; then
+    echo "== $(date +%T) encode"
+    $PY scripts/device/encode_texts.py "$D/synth" && touch "$D/encoded"
+  fi
+  if [ -f "$D/encoded" ] && ! pgrep -f "jaxmotion.train" > /dev/null; then
+    echo "== $(date +%T) train"
+    rm -f "$D/train.log"
+    if [ "$TASK" = amdm ]; then
+      TASK_ARGS="--config configs/amdm.py adm_workdir=$PWD/jaxmotion/assets/adm.safetensors
+        model.temporal_basis=16 predicted_fraction=0.5 adm_sampler_steps=10"
+    else
+      TASK_ARGS="--config configs/adm.py backbone_workdir=$PWD/.dev/seg model.text_tokens=24
+        init_from=$PWD/jaxmotion/assets/adm.safetensors grounding_every=500 grounding_cases=256"
+    fi
+    # shellcheck disable=SC2086  # TASK_ARGS and TRAIN_ARGS are word lists
+    setsid nohup $PY -m jaxmotion.train $TASK_ARGS data_dir="$D/synth" workdir="$D/run" \
+      batch_size=64 steps=60000 optim.lr=1e-4 optim.warmup_steps=100 log_every=100 \
+      eval_every=1000 ckpt_every=500 keep_checkpoints=1 loader_workers=12 \
+      progress=false ${TRAIN_ARGS:-} > "$D/train.log" 2>&1 < /dev/null &
+  fi
+else
+  LIMIT=0  # nothing to wait for: say what failed now
+fi
+while [ $(( $(date +%s) - T0 )) -lt "$LIMIT" ]; do
+  sleep 10
+  if [ -f "$D/train.log" ] && ! pgrep -f "jaxmotion.train" > /dev/null; then
+    echo "training process ended"; break
+  fi
+done
+echo "== $(date +%T) pack"
+grep -v "^ " "$D/train.log" 2>/dev/null | tail -n 5
+tail -n 3 "$D/run/metrics.jsonl" 2>/dev/null
+for f in model.safetensors model_best.safetensors best.json metrics.jsonl config.json; do
+  cp "$D/run/$f" "$OUT/" 2>/dev/null
+done
+cp "$D/train.log" "$D/synth.log" "$OUT/" 2>/dev/null
+nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader 2>/dev/null
+echo "== $(date +%T) end"

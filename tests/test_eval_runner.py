@@ -75,6 +75,7 @@ def test_ground_truth_affordance_row(tiny_runs, tmp_path):
     assert gt["action_judged"] >= 0.75  # the dataset's own motions: the judge's ceiling
     row = rep["models"]["adm"]["cases"][0]
     assert len(row["pelvis_speeds"]) == 2 and 0.0 <= row["teleport"] <= 1.0
+    assert 0.0 <= row["judge/over_footprint"] <= 1.0 and "judge/pelvis_above_surface" in row
     assert md.count("| adm | perceiver |") == 1 and "| oracle | perceiver |" not in md
 
 

@@ -289,6 +289,14 @@ def score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: l
     return rows
 
 
+def nan_mean(values) -> float:
+    """Mean of the non-NaN ``values``; NaN (quietly) when there are none, e.g. the seat height
+    of a walk, which has no seat."""
+    v = np.asarray(values, np.float64).ravel()
+    v = v[~np.isnan(v)]
+    return float(v.mean()) if v.size else float("nan")
+
+
 #: The geometric judge's checks and measures at the anchor frame that ``cases.jsonl`` carries
 #: per case (``judge/<name>``: the mean over the case's motions).
 JUDGE_DETAILS = ("over_footprint", "seat_height_ok", "lie_height_ok", "torso_upright",
@@ -319,7 +327,7 @@ def _action_columns(case, joints, recognizer) -> dict:
             np.broadcast_to(pts, (k, *pts.shape)), surface_height=np.full(k, surface)))
         out["action_judged"] = float(np.mean(rep["success"]))
         for name in JUDGE_DETAILS:  # which of the judge's checks fail, to see why
-            out[f"judge/{name}"] = float(np.nanmean(np.asarray(rep[name], np.float64)))
+            out[f"judge/{name}"] = nan_mean(rep[name])
     if recognizer is not None:
         from jaxmotion.eval.recognizer import action_accuracy
 
@@ -497,7 +505,7 @@ def evaluate(
             per_case = score_cases(cases, joints, affs if grounded else None, phys, body, fps,
                                    fit_errors, bar, vertex_stride, recognizer)
             keys = sorted({k for row in per_case for k in row} - {"pelvis_speeds"})
-            rep = {k: float(np.nanmean([row.get(k, np.nan) for row in per_case])) for k in keys}
+            rep = {k: nan_mean([row.get(k, np.nan) for row in per_case]) for k in keys}
             rep.update(_speed_percentiles(per_case))
             case_rows += [_case_row(spec.name, r, ci, cases[ci], row,
                                     None if regions is None else regions[ci])
@@ -544,7 +552,7 @@ def evaluate(
         gt = np.stack([c["gt"] for c in cases])[:, None]
         rows = score_cases(cases, gt, None, phys, body, fps, [], None, vertex_stride,
                            recognizer)
-        report["ground_truth"] = {k: float(np.nanmean([r[k] for r in rows])) for k in rows[0]
+        report["ground_truth"] = {k: nan_mean([r[k] for r in rows]) for k in rows[0]
                                   if k != "pelvis_speeds"}
         report["ground_truth"].update(_speed_percentiles(rows))
     bar.close()

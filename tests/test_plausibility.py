@@ -12,6 +12,7 @@ from jaxmotion.eval.plausibility import (
     TELEPORT_PELVIS_SPEED,
     plausibility,
     summarize_plausibility,
+    teleports,
 )
 from jaxmotion.eval.skating import foot_skating
 from jaxmotion.geometry.skeleton import PARENTS, rest_joints_host
@@ -199,6 +200,10 @@ def test_matches_brute_force_reference():
         for k, v in ref.items():
             np.testing.assert_allclose(float(out[k][i]), v, rtol=1e-3, atol=1e-5, err_msg=k)
     assert 0 < float(np.mean(out["teleport"])) < 1  # both cases occur in this batch
+    # the flag alone (generate's candidate choice) is the same flag
+    np.testing.assert_array_equal(np.asarray(teleports(joints, mask, fps=20.0)),
+                                  np.asarray(out["teleport"]))
+    assert bool(teleports(joints[0], mask[0], fps=20.0)) == bool(out["teleport"][0])
 
 
 def test_jit_and_vmap_agree():
@@ -218,6 +223,8 @@ def test_shape_errors():
         plausibility(np.zeros((4, 21, 3)))
     with pytest.raises(ValueError):
         plausibility(np.zeros((2, 4, 22, 3)), np.ones((2, 5), bool))
+    with pytest.raises(ValueError):
+        teleports(np.zeros((2, 4, 22, 3)), np.ones((2, 5), bool))
 
 
 def test_summary():

@@ -50,6 +50,7 @@ __all__ = [
     "TELEPORT_PELVIS_SPEED",
     "plausibility",
     "summarize_plausibility",
+    "teleports",
 ]
 
 #: Any joint faster than this (m/s) is a teleport: 0.3 m in one frame at 30 fps. Fast
@@ -94,6 +95,37 @@ def plausibility(
       bool, ``valid_frames`` int32), scalars for one motion. Speeds m/s, jerk m/s³,
       lengths m.
     """
+    joints, mask, single = _prepared(joints, mask)
+    out = _plausibility_batch(
+        joints,
+        mask,
+        jnp.float32(fps),
+        jnp.float32(teleport_joint_speed),
+        jnp.float32(teleport_pelvis_speed),
+    )
+    return {k: v[0] for k, v in out.items()} if single else out
+
+
+def teleports(
+    joints,
+    mask=None,
+    *,
+    fps: float = 30.0,
+    teleport_joint_speed: float = TELEPORT_JOINT_SPEED,
+    teleport_pelvis_speed: float = TELEPORT_PELVIS_SPEED,
+) -> jax.Array:
+    """The ``teleport`` flag of :func:`plausibility` alone (same arguments; bool ``[B]``, or a
+    scalar for one motion), without the other measures: for a caller on a hot path, such as
+    the choice among motion candidates in ``generate``."""
+    joints, mask, single = _prepared(joints, mask)
+    out = _teleport_batch(joints, mask, jnp.float32(fps), jnp.float32(teleport_joint_speed),
+                          jnp.float32(teleport_pelvis_speed))
+    return out[0] if single else out
+
+
+def _prepared(joints, mask):
+    """Checked ``joints [B, T', 22, 3]`` and ``mask [B, T']`` padded in frames (masked out) to a
+    multiple of ``_FRAME_BUCKET``, and whether one motion was given."""
     joints = jnp.asarray(joints, jnp.float32)
     single = joints.ndim == 3
     if single:
@@ -121,27 +153,28 @@ def plausibility(
     if size != t:
         joints = jnp.pad(joints, ((0, 0), (0, size - t), (0, 0), (0, 0)))
         mask = jnp.pad(mask, ((0, 0), (0, size - t)))
-    out = _plausibility_batch(
-        joints,
-        mask,
-        jnp.float32(fps),
-        jnp.float32(teleport_joint_speed),
-        jnp.float32(teleport_pelvis_speed),
-    )
-    return {k: v[0] for k, v in out.items()} if single else out
+    return joints, mask, single
+
+
+def _speeds(joints, mask, fps, joint_limit, pelvis_limit):
+    """One motion's padded-safe frames ``x``, frame pairs, steps, joint speeds ``[T-1, J]``,
+    horizontal pelvis speeds ``[T-1]`` and teleport flag."""
+    x = jnp.where(mask[:, None, None], joints, 0.0)  # garbage in padded frames never leaks in
+    pair = mask[1:] & mask[:-1]  # [T-1]
+    step = x[1:] - x[:-1]  # [T-1, J, 3]
+    speed = jnp.where(pair[:, None], safe_norm(step) * fps, 0.0)  # [T-1, J]
+    pelvis_xy = jnp.where(pair, safe_norm(step[:, 0, :2]) * fps, 0.0)  # [T-1]
+    teleport = ((jnp.max(speed) > joint_limit) | (jnp.max(speed[:, 0]) > pelvis_limit)) & (
+        jnp.any(pair))
+    return x, pair, step, speed, pelvis_xy, teleport
 
 
 def _plausibility_one(joints, mask, fps, joint_limit, pelvis_limit):
     """One motion: ``joints [T, 22, 3]``, ``mask [T]`` -> dict of scalars."""
-    x = jnp.where(mask[:, None, None], joints, 0.0)  # garbage in padded frames never leaks in
-    pair = mask[1:] & mask[:-1]  # [T-1]
+    x, pair, step, speed, pelvis_xy, teleport = _speeds(joints, mask, fps, joint_limit,
+                                                        pelvis_limit)
     any_pair = jnp.any(pair)
-
-    step = x[1:] - x[:-1]  # [T-1, J, 3]
-    speed = jnp.where(pair[:, None], safe_norm(step) * fps, 0.0)  # [T-1, J]
-    pelvis_xy = jnp.where(pair, safe_norm(step[:, 0, :2]) * fps, 0.0)  # [T-1]
     joint_max = jnp.max(speed)
-    teleport = (joint_max > joint_limit) | (jnp.max(speed[:, 0]) > pelvis_limit)
 
     window = mask[3:] & mask[2:-1] & mask[1:-2] & mask[:-3]  # [T-3]
     second = step[1:] - step[:-1]  # nested differences: exact 0 for still frames in float32
@@ -165,7 +198,7 @@ def _plausibility_one(joints, mask, fps, joint_limit, pelvis_limit):
     return {
         "pelvis_speed_max": jnp.max(pelvis_xy),
         "joint_speed_max": joint_max,
-        "teleport": teleport & any_pair,
+        "teleport": teleport,
         "jerk_mean": jerk_mean,
         "floor_penetration": floor,
         "skate_ratio": skate.astype(jnp.float32),
@@ -175,6 +208,7 @@ def _plausibility_one(joints, mask, fps, joint_limit, pelvis_limit):
 
 
 _plausibility_batch = jax.jit(jax.vmap(_plausibility_one, in_axes=(0, 0, None, None, None)))
+_teleport_batch = jax.jit(jax.vmap(lambda *a: _speeds(*a)[-1], in_axes=(0, 0, None, None, None)))
 
 
 def summarize_plausibility(per_motion: dict, *, percentiles=(50, 99)) -> dict[str, float]:

@@ -427,16 +427,16 @@ class AffordancePipeline:
         frame where ``anchor_first [B]`` (getting up from the object,
         :func:`jaxmotion.scene.instructions.anchor_is_first`; None: all False), else the
         last. Closeness is the smallest distance between a joint and a target point. A motion
-        that teleports (:func:`jaxmotion.eval.plausibility.plausibility`) is never kept while
+        that teleports (:func:`jaxmotion.eval.plausibility.teleports`) is never kept while
         one of its example's candidates does not: proximity is never bought with a jump. An
         example with no target point keeps the first plausible candidate."""
-        from jaxmotion.eval.plausibility import plausibility
+        from jaxmotion.eval.plausibility import teleports
 
         motions = self.sample_motions(key, points, feats, text_emb, mask, spec, candidates)
         mask = jnp.asarray(mask, bool)
         b, m = motions.shape[:2]
-        jumps = plausibility(motions.reshape(b * m, *motions.shape[2:]),
-                             jnp.repeat(mask, m, axis=0))["teleport"].reshape(b, m)
+        jumps = teleports(motions.reshape(b * m, *motions.shape[2:]),
+                          jnp.repeat(mask, m, axis=0)).reshape(b, m)
         t_last = mask.shape[1] - 1 - jnp.argmax(mask[:, ::-1], axis=1)
         first = (jnp.zeros(mask.shape[0], bool) if anchor_first is None
                  else jnp.asarray(anchor_first, bool))

@@ -56,10 +56,11 @@ def test_ground_truth_affordance_row(tiny_runs, tmp_path):
     write_report(rep, tmp_path)
     saved = np.load(tmp_path / "motions.npz")
     assert saved["adm/joints"].shape == (1, 2, 2, *saved["mask"].shape[1:], 22, 3)
-    np.testing.assert_array_equal(saved["oracle/joints"], rep["models"]["oracle"]["motions"])
+    np.testing.assert_array_equal(saved["oracle/joints"],
+                                  rep["models"]["oracle"]["motions"]["joints"])
     assert list(saved["files"]) == [c["file"] for c in rep["models"]["adm"]["cases"]]
-    assert saved["rotation"].shape == (2, 3, 3) and "motions" not in (
-        tmp_path / "results.json").read_text()
+    assert saved["adm/rotation"].shape == (2, 3, 3) and saved["oracle/shift"].shape == (2, 3)
+    assert "motions" not in (tmp_path / "results.json").read_text()
     o = rep["models"]["oracle"]
     assert o["affordance"] == "ground truth" and rep["models"]["adm"]["affordance"] == "adm"
     assert "success@0.3" not in o["summary"] and np.isfinite(o["summary"]["goal_distance"]["mean"])

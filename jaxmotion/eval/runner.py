@@ -394,10 +394,13 @@ def evaluate(
     """Evaluate ``models`` on the first ``num_cases`` cases of ``split``; see the module
     docstring (``protocol``: ``paper`` or ``generate``; ``grounding``: how the generate
     protocol finds the region, ``auto`` or ``adm``, as ``jaxmotion generate --grounding``).
-    Returns a JSON-ready dict: settings, and per model its sampler, per-replication metrics and ``summary`` ``{metric: {mean, ci95, n}}``. With ``ground_truth`` the dataset's
-    With ``keep_motions`` each model's entry also holds ``motions``: the sampled joints
-    ``[R, C, K, T, 22, 3]`` in each case's crop frame (:func:`write_report` writes them to
-    ``motions.npz``, with what maps them back to the room). With ``ground_truth`` the dataset's
+    Returns a JSON-ready dict: settings, and per model its sampler, per-replication metrics
+    and ``summary`` ``{metric: {mean, ci95, n}}``. With ``keep_motions`` each model's entry
+    also holds ``motions``: the sampled joints ``[R, C, K, T, 22, 3]`` in each case's crop
+    frame and that model's crops (``rotation``, ``shift``: under the generate protocol each
+    model finds its own regions), and the report ``motion_cases`` (``files``, ``texts``,
+    ``actions``, ``mask``); :func:`write_report` writes them to ``motions.npz``, leaving them
+    out of ``results.json``. With ``ground_truth`` the dataset's
     own motions are scored the same way (``report["ground_truth"]``: the metrics' ceiling on
     this data; APD is 0 with one motion per case)."""
     import jax
@@ -535,13 +538,15 @@ def evaluate(
             "seconds": time.perf_counter() - t_model,
             "cases": case_rows,
         }
-        if keep_motions:
-            report["models"][spec.name]["motions"] = np.stack(kept)
-            report.setdefault("case_frames", {
-                "files": [c["file"] for c in cases], "texts": [c["text"] for c in cases],
-                "actions": [c["action"] for c in cases], "mask": np.stack([c["mask"] for c in cases]),
+        if keep_motions:  # the crops are this model's; the cases are the same for every model
+            report["models"][spec.name]["motions"] = {
+                "joints": np.stack(kept),
                 "rotation": np.stack([np.asarray(c["rotation"]) for c in cases]),
-                "shift": np.stack([np.asarray(c["shift"]) for c in cases])})
+                "shift": np.stack([np.asarray(c["shift"]) for c in cases])}
+            report.setdefault("motion_cases", {
+                "files": [c["file"] for c in cases], "texts": [c["text"] for c in cases],
+                "actions": [c["action"] for c in cases],
+                "mask": np.stack([c["mask"] for c in cases])})
         if regions is not None:
             report["models"][spec.name]["regions"] = _region_summary(regions)
     if ground_truth:
@@ -712,21 +717,22 @@ def write_report(report: dict, out) -> tuple[Path, Path]:
     :func:`_case_row`): the per-case metrics behind the means, to find where a model fails;
     ``results.json`` holds everything else. A report of ``evaluate(keep_motions=True)`` also
     gives ``out/motions.npz``: per model ``<name>/joints`` ``[R, C, K, T, 22, 3]`` in each
-    case's crop frame, and per case ``files``, ``texts``, ``actions``, ``mask`` and the crop's
-    ``rotation`` / ``shift`` (a crop point ``p`` is the room point ``p @ rotation + shift``)."""
+    case's crop frame and that model's crops ``<name>/rotation`` ``[C, 3, 3]`` /
+    ``<name>/shift`` ``[C, 3]`` (a crop point ``p`` is the room point ``p @ rotation +
+    shift``), and per case ``files``, ``texts``, ``actions``, ``mask``."""
     from jaxmotion._atomic import atomic_open
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     models = {name: {k: v for k, v in m.items() if k not in ("cases", "motions")}
               for name, m in report["models"].items()}
-    if "case_frames" in report:
-        arrays = {k: np.asarray(v) for k, v in report["case_frames"].items()}
-        arrays.update({f"{name}/joints": m["motions"] for name, m in report["models"].items()
-                       if "motions" in m})
+    if "motion_cases" in report:
+        arrays = {k: np.asarray(v) for k, v in report["motion_cases"].items()}
+        arrays.update({f"{name}/{k}": v for name, m in report["models"].items()
+                       for k, v in m.get("motions", {}).items()})
         with atomic_open(out / "motions.npz", "wb") as f:
             np.savez_compressed(f, **arrays)
-    report = {k: v for k, v in report.items() if k != "case_frames"}
+    report = {k: v for k, v in report.items() if k != "motion_cases"}
     with atomic_open(out / "cases.jsonl", "w") as f:
         for m in report["models"].values():
             for row in m.get("cases", []):

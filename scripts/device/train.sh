@@ -1,7 +1,8 @@
 #!/bin/bash
 # One device call of an ADM (TASK=adm, the default) or AMDM (TASK=amdm) training run on a lent
-# GPU machine (see docs/results.md, "Fine-tuning the ADM on a GPU"). Idempotent: call it again and again (each call at most 10 minutes) while
-# the machine stays warm; each call does what is left:
+# GPU machine (see docs/results.md, "Fine-tuning the ADM on a GPU"). Idempotent: call it again
+# and again (each call at most 10 minutes) while the machine stays warm; each call does what is
+# left:
 #   1. install the staged wheels (scripts/device/prepare.sh) into /tmp/site;
 #   2. build the grown dataset (SCENES rooms, the first SPLIT split as before, the rest train)
 #      with every CPU, JAX on the CPU (16 processes must not each take the GPU);
@@ -17,13 +18,15 @@
 # overrides appended to the defaults below, e.g. "crop.centre=room crop.size=8" for the room view,
 # or "model.target_input=true" for the ADM that reads a known target, shipped since session 11).
 # TASK=amdm trains the AMDM on the shipped ADM's maps (half the batches) with the temporal basis
-# of the plausibility issue (model.temporal_basis=16), from scratch; add
+# of the plausibility issue (model.temporal_basis=24: docs/results.md, "A band-limited AMDM"),
+# from scratch; add
 # TRAIN_ARGS="init_from=$PWD/jaxmotion/assets/amdm.safetensors" to fine-tune the shipped one.
 set -u
 export PYTHONUNBUFFERED=1
 T0=$(date +%s)
 LIMIT=${LIMIT:-550}
 TASK=${TASK:-adm}
+case "$TASK" in adm|amdm) ;; *) echo "TASK must be adm or amdm, got '$TASK'"; exit 2;; esac
 SCENES=${SCENES:-5000}
 SPLIT=${SPLIT:-2000}
 D=${D:-/root/jm}
@@ -56,7 +59,7 @@ if [ -f "$D/synth/manifest.json" ]; then
     rm -f "$D/train.log"
     if [ "$TASK" = amdm ]; then
       TASK_ARGS="--config configs/amdm.py adm_workdir=$PWD/jaxmotion/assets/adm.safetensors
-        model.temporal_basis=16 predicted_fraction=0.5 adm_sampler_steps=10"
+        model.temporal_basis=24 predicted_fraction=0.5 adm_sampler_steps=10"
     else
       TASK_ARGS="--config configs/adm.py backbone_workdir=$PWD/.dev/seg model.text_tokens=24
         init_from=$PWD/jaxmotion/assets/adm.safetensors grounding_every=500 grounding_cases=256"

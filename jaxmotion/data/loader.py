@@ -16,6 +16,12 @@ key                   shape / dtype        meaning
 ``mask``              [B, T] bool          valid frames
 ``action``            [B] int32            index into ``ACTIONS``
 ``text``              list[str]            the instructions
+``normals``           [B, N, 3] float32    crop-frame unit normals (0 where unknown)
+``rotation``          [B, 3, 3] float32    the crop's rotation (``x_crop = R (x − shift)``)
+``global_orient``     [B, T, 3] float32    SMPL-X axis-angle, world frame (``R ·`` it
+                                           for the crop frame)
+``body_pose``         [B, T, 21, 3]        SMPL-X axis-angle body pose
+``betas``             [B, 10] float32      SMPL-X shape
 ====================  ===================  =========================================
 
 Determinism: the order of epoch ``e`` is a permutation drawn from
@@ -62,8 +68,9 @@ class _SceneCache:
         if not path.is_file():
             raise DatasetError(f"{path}: scene file missing (referenced by a sample)")
         with np.load(path, allow_pickle=False) as d:
+            normal = (d["normal"] if "normal" in d.files else np.zeros_like(d["xyz"]))
             item = (d["xyz"].astype(np.float32), d["rgb"].astype(np.float32), d["instance"],
-                    d["semantic"].astype(np.int32))
+                    d["semantic"].astype(np.int32), normal.astype(np.float32))
         with self._lock:
             self._items[scene_id] = item
             while len(self._items) > self.capacity:
@@ -118,14 +125,22 @@ class Dataset:
         t = s["joints"].shape[0]
         if t > self.max_frames:
             raise DatasetError(f"{self.files[i]}: {t} frames > max_frames={self.max_frames}")
-        xyz, rgb, inst, sem = self._scenes.get(s["scene_id"])
+        xyz, rgb, inst, sem, normal = self._scenes.get(s["scene_id"])
         c = crop_sample(rng, xyz, rgb, inst, s["joints"], s["mask"], s["target_id"], self.spec)
-        joints = np.zeros((self.max_frames, 22, 3), np.float32)
-        joints[:t] = c.joints
+
+        def pad(x):
+            out = np.zeros((self.max_frames, *x.shape[1:]), np.float32)
+            out[:t] = x
+            return out
+
         mask = np.zeros(self.max_frames, bool)
         mask[:t] = c.mask
-        return dict(points=c.points, colors=c.colors, target_mask=c.target_mask, joints=joints,
-                    semantic=sem[c.indices],
+        return dict(points=c.points, colors=c.colors, target_mask=c.target_mask,
+                    joints=pad(c.joints), semantic=sem[c.indices],
+                    normals=(normal[c.indices] @ c.rotation.T).astype(np.float32),
+                    rotation=c.rotation.astype(np.float32),
+                    global_orient=pad(s["global_orient"]), body_pose=pad(s["body_pose"]),
+                    betas=np.asarray(s["betas"], np.float32),
                     mask=mask, action=np.int32(ACTIONS.index(s["action"])), text=s["text"])
 
     def host_batch(self, indices, rng: np.random.Generator) -> dict:

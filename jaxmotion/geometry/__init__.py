@@ -34,6 +34,14 @@ from jaxmotion.geometry.rotations import (
     rotation_6d_to_matrix,
     skew,
 )
+from jaxmotion.geometry.sensors import (
+    SENSOR_CHANNELS,
+    environment_sensor,
+    sensor_grid,
+    target_sensor,
+    trajectory_sensor,
+    voxel_sensor,
+)
 from jaxmotion.geometry.skeleton import (
     JOINT_NAMES,
     MIRROR_PERMUTATION,

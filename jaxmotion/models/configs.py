@@ -33,7 +33,8 @@ import math
 from collections.abc import Callable
 from typing import Any, Literal
 
-__all__ = ["PointTransformerConfig", "ADMConfig", "AMDMConfig", "PRESET_NAMES", "preset_overrides"]
+__all__ = ["PointTransformerConfig", "ADMConfig", "AMDMConfig", "ObjectCentricConfig", "PRESET_NAMES",
+           "preset_overrides"]
 
 PRESET_NAMES = ("tiny", "cpu", "paper")
 
@@ -295,6 +296,68 @@ class AMDMConfig(Presets):
     def point_channels(self) -> int:
         """Per-point input channels of the encoder besides xyz."""
         return self.affordance_dim if self.scene_input == "affordance" else 3
+
+
+@dataclasses.dataclass(frozen=True)
+class ObjectCentricConfig(Presets):
+    """The object-centric pipeline's two denoisers (Cen et al. 2024): trajectory and completion.
+
+    Attributes:
+      kind: ``trajectory`` (stage 1: the root trajectory, 9-d per frame) or ``completion``
+        (stage 2: the whole motion, 135-d, along a given trajectory).
+      text_dim, betas_dim: widths of the sentence embedding and the body shape.
+      sensor_res: voxels per side of every sensor (8 in the paper: 8³ voxels x 7 channels).
+      sensor_hidden: width of the two-layer SiLU MLP that turns a flattened sensor into a token.
+      traj_sensor: completion only: one token per frame from the stage-1 trajectory and the
+        trajectory sensor around it (the paper's); False: from the trajectory alone.
+      time_dim: sinusoidal timestep width; d_model, num_heads, num_layers, ff_dim, dropout,
+        norm_first: the transformer decoder (its memory is the timestep token).
+      temporal_basis: 0, or K > 0: the x0 estimate is the least-squares fit of the network's
+        per-frame output by the first K cosines of its valid frames (as ``AMDMConfig``).
+    """
+
+    kind: Literal["trajectory", "completion"] = "trajectory"
+    text_dim: int = 384
+    betas_dim: int = 10
+    sensor_res: int = 8
+    sensor_hidden: int = 256
+    traj_sensor: bool = True
+    time_dim: int = 128
+    d_model: int = 128
+    num_heads: int = 4
+    num_layers: int = 3
+    ff_dim: int = 256
+    dropout: float = 0.1
+    norm_first: bool = False
+    temporal_basis: int = 0
+
+    _PRESETS = {
+        "tiny": lambda: dict(sensor_res=4, sensor_hidden=16, time_dim=16, d_model=16,
+                             num_heads=2, num_layers=1, ff_dim=32),
+        "paper": lambda: dict(text_dim=384, sensor_hidden=512, time_dim=512, d_model=512,
+                              num_heads=8, num_layers=4, ff_dim=1024, dropout=0.1),
+    }
+
+    def __post_init__(self):
+        if self.kind not in ("trajectory", "completion"):
+            raise ValueError(f"kind must be 'trajectory' or 'completion', got {self.kind!r}")
+        if self.d_model % self.num_heads or self.d_model % 2:
+            raise ValueError(f"d_model={self.d_model} must be even and divisible by "
+                             f"num_heads={self.num_heads}")
+        if self.time_dim % 2:
+            raise ValueError(f"time_dim must be even (sin/cos pairs), got {self.time_dim}")
+        if self.num_layers < 1 or self.sensor_res < 2:
+            raise ValueError(f"need num_layers >= 1 and sensor_res >= 2, got {self.num_layers}, "
+                             f"{self.sensor_res}")
+        if not 0.0 <= self.dropout < 1.0:
+            raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
+        if self.temporal_basis < 0:
+            raise ValueError(f"temporal_basis must be 0 (off) or K > 0, got {self.temporal_basis}")
+
+    @property
+    def motion_dim(self) -> int:
+        """Features per frame: 9 (trajectory) or 135 (trajectory + 21 body rotations, 6D)."""
+        return 9 if self.kind == "trajectory" else 135
 
 
 def preset_overrides(cls: type, name: str, prefix: str = "") -> dict[str, Any]:

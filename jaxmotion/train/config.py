@@ -13,7 +13,7 @@ from typing import Literal
 
 from jaxmotion.data.config import AffordanceConfig, CropConfig
 
-__all__ = ["DiffusionConfig", "OptimConfig", "TrainConfig"]
+__all__ = ["DiffusionConfig", "ObjectCentricTrainConfig", "OptimConfig", "TrainConfig"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,3 +98,43 @@ class TrainConfig:
             raise ValueError("log_every and ckpt_every must be >= 1 and eval_every >= 0")
         if self.loader_workers < 0:
             raise ValueError(f"loader_workers must be >= 0 (0: one thread), got {self.loader_workers}")
+
+
+@dataclasses.dataclass(frozen=True)
+class ObjectCentricTrainConfig(TrainConfig):
+    """The object-centric pipeline's trajectory and completion models
+    (``configs/trajectory.py``, ``configs/completion.py``).
+
+    Attributes:
+      loss: ``l1`` (the paper's) or ``mse``, masked over the valid frames.
+      pose_weight: weight of the body rotations against the trajectory (10 in the paper).
+      sensor_points: crop points the trajectory sensor reads (the first ones of the random
+        draw; 0 = all), for the cost of a per-frame sensor on a CPU.
+      stats_batches: training batches whose features give the normalisation statistics.
+      std_floor: smallest standard deviation a feature is divided by.
+      pretrain: drop the text and the scene sensors for every example (pre-training on
+        motions alone, as the paper pre-trains on AMASS; the synthetic motions stand in).
+      init_from: start from another run's weights (workdir or ``.safetensors``) of the same
+        model config, e.g. the fine-tune after ``pretrain=true``; its statistics are kept.
+    """
+
+    loss: Literal["l1", "mse"] = "l1"
+    pose_weight: float = 10.0
+    sensor_points: int = 512
+    stats_batches: int = 8
+    std_floor: float = 0.05
+    pretrain: bool = False
+    init_from: str = ""
+    diffusion: DiffusionConfig = dataclasses.field(
+        default_factory=lambda: DiffusionConfig(schedule="cosine", steps=200, cond_drop_prob=0.1))
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.loss not in ("l1", "mse"):
+            raise ValueError(f"loss must be 'l1' or 'mse', got {self.loss!r}")
+        if self.pose_weight <= 0 or self.std_floor <= 0:
+            raise ValueError(f"pose_weight ({self.pose_weight}) and std_floor "
+                             f"({self.std_floor}) must be > 0")
+        if self.sensor_points < 0 or self.stats_batches < 1:
+            raise ValueError(f"need sensor_points >= 0 and stats_batches >= 1, got "
+                             f"{self.sensor_points}, {self.stats_batches}")

@@ -23,109 +23,20 @@ normalisation statistics from the dataset's ``stats.npz``.
 
 from __future__ import annotations
 
-import itertools
-from pathlib import Path
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
 from jaxmotion.config import config_to_dict
-from jaxmotion.constants import TEXT_ENCODER
-from jaxmotion.data.crop import CropSpec
-from jaxmotion.data.format import DatasetError
-from jaxmotion.data.loader import Dataset, Stats, compute_stats, load_stats, save_stats
 from jaxmotion.models.frozen import ADMNet, load_adm, load_backbone
 from jaxmotion.models.weights import flatten_state
+from jaxmotion.train.data_task import DataTask, dataset_stats
 from jaxmotion.train.evaluator_task import EvaluatorTask
+from jaxmotion.train.object_centric_task import ObjectCentricTask
 from jaxmotion.train.recognizer_task import RecognizerTask
 
 __all__ = ["TASKS", "ADMTask", "AMDMTask", "SegmentationTask", "get_task"]
-
-
-def _crop_spec(cfg) -> CropSpec:
-    return CropSpec(**config_to_dict(cfg.crop))
-
-
-def _dataset(cfg, split: str) -> Dataset:
-    return Dataset(cfg.data_dir, split, _crop_spec(cfg), max_frames=cfg.max_frames,
-                   sigma=cfg.affordance.sigma,
-                   max_samples=cfg.max_samples if split == "train" else None)
-
-
-def _stats(cfg) -> Stats:
-    path = Path(cfg.data_dir) / "stats.npz"
-    if path.is_file():
-        return load_stats(path)
-    st = compute_stats(_dataset(cfg, "train"), num_batches=8, batch_size=8, seed=cfg.seed)
-    try:
-        save_stats(st, path)
-    except OSError:
-        pass  # read-only dataset: recomputed next time
-    return st
-
-
-class DataTask:
-    """Shared data plumbing: seeded train iterator, fixed validation batches, text embeddings."""
-
-    needs_text = True
-
-    def text_tokens(self, cfg) -> int:
-        """Token states per text the batches need (0 = the pooled embedding only)."""
-        return 0
-
-    @staticmethod
-    def cache_dir(cfg, name: str, fallback: str) -> Path:
-        """``<data_dir>/.cache/<name>``, or ``<workdir>/<fallback>`` when the dataset is
-        read-only (:func:`jaxmotion.text.dataset_cache_dir`)."""
-        from jaxmotion.text.cache import dataset_cache_dir
-
-        return dataset_cache_dir(cfg.data_dir, cfg.workdir, name, fallback)
-
-    def _text(self, cfg):
-        if not hasattr(self, "_encoder"):
-            from jaxmotion.text import EmbeddingCache, load_text_encoder
-
-            self._encoder = load_text_encoder(TEXT_ENCODER)
-            self._cache = EmbeddingCache(self.cache_dir(cfg, "text", "text_cache"))
-        return self._encoder, self._cache
-
-    def _token_cache(self, cfg):
-        if not hasattr(self, "_tokens"):
-            from jaxmotion.text import TokenCache
-
-            self._tokens = TokenCache(self.cache_dir(cfg, "text-tokens", "text_token_cache"))
-        return self._tokens
-
-    def prepare(self, cfg, raw: dict) -> dict:
-        out = {k: v for k, v in raw.items() if isinstance(v, np.ndarray)}
-        if self.needs_text:
-            encoder, cache = self._text(cfg)
-            out["text_emb"] = np.asarray(cache.encode(encoder, raw["text"]), np.float32)
-            n = self.text_tokens(cfg)
-            if n:
-                out["text_tokens"], out["text_mask"] = self._token_cache(cfg).encode(
-                    encoder, raw["text"], n)
-        return out
-
-    def train_batches(self, cfg, start_step: int):
-        ds = _dataset(cfg, "train")
-        return (self.prepare(cfg, b) for b in ds.iterate(
-            cfg.batch_size, cfg.seed, start_step=start_step,
-            workers=int(getattr(cfg, "loader_workers", 0))))
-
-    def val_batches(self, cfg) -> list[dict]:
-        try:
-            ds = _dataset(cfg, "val")
-        except DatasetError:
-            return []
-        bs = min(cfg.batch_size, len(ds))
-        bs -= bs % len(jax.devices())
-        if bs == 0:
-            return []
-        it = ds.iterate(bs, cfg.seed + 1, prefetch=0)
-        return [self.prepare(cfg, b) for b in itertools.islice(it, cfg.eval_batches)]
 
 
 # --------------------------------------------------------------------------- segmentation
@@ -177,7 +88,7 @@ class ADMTask(DataTask):
             raise ValueError(f"the backbone gives {backbone.cfg.out_dim}-d features but "
                              f"model.feature_dim={cfg.model.feature_dim}; make them equal")
         self.schedule = make_schedule(cfg.diffusion.schedule, cfg.diffusion.steps)
-        st = _stats(cfg)
+        st = dataset_stats(cfg)
         self.mean = jnp.asarray(st["affordance_mean"])
         self.std = jnp.asarray(st["affordance_std"])
         adm = make_adm(cfg.model, rngs=rngs)
@@ -327,7 +238,7 @@ class AMDMTask(DataTask):
         from jaxmotion.models import AMDM
 
         self.schedule = make_schedule(cfg.diffusion.schedule, cfg.diffusion.steps)
-        st = _stats(cfg)
+        st = dataset_stats(cfg)
         self.m_mean, self.m_std = jnp.asarray(st["motion_mean"]), jnp.asarray(st["motion_std"])
         self.a_mean = jnp.asarray(st["affordance_mean"])
         self.a_std = jnp.asarray(st["affordance_std"])
@@ -450,7 +361,8 @@ class AMDMTask(DataTask):
 
 
 TASKS = {"segmentation": SegmentationTask, "adm": ADMTask, "amdm": AMDMTask,
-         "evaluator": EvaluatorTask, "recognizer": RecognizerTask}
+         "evaluator": EvaluatorTask, "recognizer": RecognizerTask,
+         "trajectory": ObjectCentricTask, "completion": ObjectCentricTask}
 
 
 def get_task(cfg):

@@ -1,0 +1,172 @@
+"""The object-centric pipeline (Cen et al., CVPR 2024): sensors → trajectory → completion.
+
+Given a crop of the room (points with normals, in the crop frame), the target object's points
+in it, a sentence embedding and a body shape:
+
+1. the **environment sensor** (a 4 m cube around the target's centre) and the **target
+   sensor** (a cube over the target's box, read from the target's own points) describe the
+   scene (:func:`crop_sensors`);
+2. the **trajectory model** samples the root trajectory (pelvis position and 6D orientation per
+   frame, :mod:`jaxmotion.motion.representation`);
+3. the **completion model** samples the whole motion (trajectory + 21 body rotations) given
+   that trajectory, one token per frame built from it and from the **trajectory sensor**
+   (a 2 m cube per frame at the root, turned with it, :func:`trajectory_sensors`);
+4. joints by forward kinematics of the body's shape: bone lengths are exact in every frame.
+
+Both models are :class:`~jaxmotion.models.ObjectCentricDenoiser` trained by
+``configs/trajectory.py`` and ``configs/completion.py``; each weights file carries the
+normalisation statistics of its features (``stats/feature_mean``, ``stats/feature_std``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+from flax import nnx
+
+from jaxmotion.diffusion.samplers import SamplerSpec
+from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
+from jaxmotion.motion.representation import TRAJECTORY_DIM, motion_to_joints, trajectory_frames
+
+__all__ = [
+    "ENVIRONMENT_HALF_SIZE",
+    "TRAJECTORY_HALF_SIZE",
+    "ObjectCentricPipeline",
+    "crop_sensors",
+    "trajectory_sensors",
+]
+
+ENVIRONMENT_HALF_SIZE = 2.0  # metres: the environment sensor is a 4 m cube
+TRAJECTORY_HALF_SIZE = 1.0  # metres: the trajectory sensor is a 2 m cube per frame
+DEFAULT_SPEC = SamplerSpec("ddim", 20)
+_FAR = 1.0e4  # where points that are not the target's go when the target sensor reads
+
+
+def crop_sensors(points, normals, target_mask, res: int):
+    """``(environment [r, r, r, 7], target [r, r, r, 7])`` sensors of one crop.
+
+    Args:
+      points, normals: ``[N, 3]`` the crop's points and normals (crop frame).
+      target_mask: ``[N]`` bool, the target's points (at least one).
+      res: voxels per side (static).
+    The environment sensor is centred on the mean of the target's points (as the authors'
+    code centres it) and reads every point; the target sensor covers the target's box and
+    reads the target's points only (the others are moved out of its reach).
+    """
+    m = jnp.asarray(target_mask, bool)
+    w = m.astype(jnp.float32)[:, None]
+    centre = jnp.sum(points * w, 0) / jnp.maximum(jnp.sum(w), 1.0)
+    lo = jnp.min(jnp.where(m[:, None], points, jnp.inf), 0)
+    hi = jnp.max(jnp.where(m[:, None], points, -jnp.inf), 0)
+    lo, hi = jnp.where(jnp.isfinite(lo), lo, centre), jnp.where(jnp.isfinite(hi), hi, centre)
+    hi = jnp.maximum(hi, lo + 1e-3)  # a one-point target still gets a (tiny) cube
+    env = environment_sensor(points, normals, centre, ENVIRONMENT_HALF_SIZE, res)
+    tgt = target_sensor(jnp.where(m[:, None], points, _FAR), normals, lo, hi, res)
+    return env, tgt
+
+
+def trajectory_sensors(points, normals, trajectory, res: int):
+    """The trajectory sensor ``[T, r, r, r, 7]`` along ``trajectory [T, 9]`` (metres, crop
+    frame): a 2 m cube per frame at the pelvis, turned with the root orientation."""
+    pelvis, rot = trajectory_frames(trajectory)
+    return trajectory_sensor(points, normals, pelvis, rot, TRAJECTORY_HALF_SIZE, res)
+
+
+def _tensor(tensors, name, src):
+    if name not in tensors:
+        raise ValueError(f"{src}: no tensor {name!r}; is it an exported object-centric "
+                         "checkpoint (model.safetensors of configs/trajectory.py or "
+                         "configs/completion.py)?")
+    return jnp.asarray(tensors[name])
+
+
+def _load_denoiser(path, kind: str):
+    from jaxmotion.config import config_from_dict
+    from jaxmotion.diffusion import make_schedule
+    from jaxmotion.models import ObjectCentricConfig, ObjectCentricDenoiser
+    from jaxmotion.models.weights import abstract_module, apply_weights, load_weights
+
+    src = Path(path)
+    tensors, saved = load_weights(src)
+    if saved.get("task") != kind:
+        raise ValueError(f"{src} is a {saved.get('task')!r} checkpoint, not a {kind} one")
+    cfg = config_from_dict(ObjectCentricConfig, saved["model"])
+    net = abstract_module(lambda: ObjectCentricDenoiser(cfg, rngs=nnx.Rngs(0)))
+    apply_weights(net, tensors, prefix="net/", source=str(src))
+    net.eval()
+    sched = make_schedule(saved["diffusion"]["schedule"], int(saved["diffusion"]["steps"]))
+    stats = (_tensor(tensors, "stats/feature_mean", src), _tensor(tensors, "stats/feature_std", src))
+    return net, sched, stats, int(saved.get("sensor_points", 0))
+
+
+@dataclass
+class ObjectCentricPipeline:
+    """The trajectory and completion denoisers with their schedules and statistics."""
+
+    trajectory: nnx.Module
+    completion: nnx.Module
+    traj_schedule: object
+    comp_schedule: object
+    traj_stats: tuple
+    comp_stats: tuple
+    sensor_points: int = 0
+
+    @classmethod
+    def from_files(cls, trajectory_file, completion_file) -> ObjectCentricPipeline:
+        """From the exported ``model.safetensors`` of a trajectory and a completion run."""
+        t_net, t_sched, t_stats, _ = _load_denoiser(trajectory_file, "trajectory")
+        c_net, c_sched, c_stats, sp = _load_denoiser(completion_file, "completion")
+        if t_net.cfg.sensor_res != c_net.cfg.sensor_res:
+            raise ValueError(f"{trajectory_file} and {completion_file} read sensors of "
+                             f"{t_net.cfg.sensor_res}³ and {c_net.cfg.sensor_res}³ voxels: use "
+                             "checkpoints trained with the same model.sensor_res")
+        return cls(t_net, c_net, t_sched, c_sched, t_stats, c_stats, sp)
+
+    def sample_one(self, key, points, normals, target_mask, text, betas, mask, *,
+                   trajectory_spec: SamplerSpec = DEFAULT_SPEC,
+                   completion_spec: SamplerSpec = DEFAULT_SPEC) -> dict:
+        """One motion in one crop (jit / vmap it).
+
+        Args:
+          key: PRNG key.
+          points, normals: ``[N, 3]`` crop points and normals (crop frame, metres).
+          target_mask: ``[N]`` bool, the target object's points.
+          text: ``[text_dim]`` sentence embedding; betas: ``[10]`` body shape.
+          mask: ``[T]`` bool, the frames to generate (a prefix; T is static).
+          trajectory_spec, completion_spec: how each stage samples (DDIM steps, guidance).
+        Returns:
+          ``{"trajectory" [T, 9], "motion" [T, 135], "joints" [T, 22, 3]}`` in metres, crop
+          frame; frames outside ``mask`` are not meaningful.
+        """
+        res = self.trajectory.cfg.sensor_res
+        k_traj, k_comp = jax.random.split(key)
+        env, tgt = crop_sensors(points, normals, target_mask, res)
+        base = {"text": text[None], "betas": betas[None], "env_sensor": env[None],
+                "target_sensor": tgt[None], "mask": mask[None]}
+        null = {"drop_text": jnp.ones((1,), bool), "drop_scene": jnp.zeros((1,), bool)}
+        t_mean, t_std = self.traj_stats
+        nt = mask.shape[0]
+
+        def traj_denoise(x, t, c):
+            return self.trajectory(x, t, c, deterministic=True)
+
+        x = trajectory_spec.run(k_traj, traj_denoise, self.traj_schedule,
+                                (1, nt, TRAJECTORY_DIM), base, {**base, **null})
+        traj = x[0] * t_std + t_mean
+        c_mean, c_std = self.comp_stats
+        cond = {**base, "trajectory": ((traj - c_mean[:TRAJECTORY_DIM])
+                                       / c_std[:TRAJECTORY_DIM])[None]}
+        if self.completion.cfg.traj_sensor:
+            sp = self.sensor_points or points.shape[0]
+            cond["traj_sensor"] = trajectory_sensors(points[:sp], normals[:sp], traj, res)[None]
+
+        def comp_denoise(x, t, c):
+            return self.completion(x, t, c, deterministic=True)
+
+        y = completion_spec.run(k_comp, comp_denoise, self.comp_schedule,
+                                (1, nt, c_mean.shape[0]), cond, {**cond, **null})
+        motion = y[0] * c_std + c_mean
+        return {"trajectory": traj, "motion": motion, "joints": motion_to_joints(motion, betas)}

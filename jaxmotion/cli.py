@@ -153,11 +153,18 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         raise ValueError("--checkpoints takes a folder, or the ADM and AMDM workdirs / files")
     ckpt = None if not args.checkpoints else (
         args.checkpoints[0] if len(args.checkpoints) == 1 else tuple(args.checkpoints))
+    if args.object_checkpoints and len(args.object_checkpoints) not in (1, 2):
+        raise ValueError("--object-checkpoints takes a folder, or the trajectory and completion "
+                         "workdirs / files")
+    objects = None if not args.object_checkpoints else (
+        args.object_checkpoints[0] if len(args.object_checkpoints) == 1
+        else tuple(args.object_checkpoints))
     options = GenerateOptions.build(
         object_id=args.object, samples=args.samples, seed=args.seed, steps=args.steps,
         adm_steps=args.adm_steps, guidance=args.guidance, consistency=args.consistency,
         grounding=args.grounding, adm_candidates=args.adm_candidates,
-        motion_candidates=args.motion_candidates, checkpoints=ckpt, num_points=args.points)
+        motion_candidates=args.motion_candidates, checkpoints=ckpt, num_points=args.points,
+        pipeline=args.pipeline, object_checkpoints=objects)
     check_output_folder(args.out)
     if args.scene != "demo":
         from pathlib import Path
@@ -333,6 +340,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a folder with adm.safetensors and amdm.safetensors (and optionally "
                    "adm_text.safetensors, the ADM used when no target object is known), or the "
                    "ADM and AMDM training workdirs (default: the shipped checkpoints)")
+    p.add_argument("--pipeline", choices=("affordance", "object-centric"), default="affordance",
+                   help="affordance: ADM -> AMDM (default); object-centric: volumetric sensors "
+                   "around the target -> root trajectory -> motion completion (Cen et al. "
+                   "2024; needs a target object, found as for the affordance pipeline)")
+    p.add_argument("--object-checkpoints", nargs="+", default=None, metavar="PATH",
+                   help="the object-centric models: a folder with trajectory.safetensors and "
+                   "completion.safetensors, or their training workdirs (default: the shipped "
+                   "ones)")
     p.add_argument("--video", choices=("gif", "mp4", "none"), default="gif")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=_cmd_generate)

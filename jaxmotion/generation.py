@@ -60,6 +60,7 @@ class _Models:
     spec: object  # the AMDM's CropSpec, no rotation
     frames: int
     room_view: bool
+    objects: tuple | None = None  # (trajectory, completion) files: the object-centric pipeline
 
     def pipeline(self, adm: Path):
         from jaxmotion.pipelines.checkpoints import load_pipeline
@@ -67,7 +68,7 @@ class _Models:
         return load_pipeline(str(adm), str(self.amdm))
 
 
-def _check_models(checkpoints) -> _Models:
+def _check_models(checkpoints, object_checkpoints=None, pipeline="affordance") -> _Models:
     from jaxmotion.data.crop import crop_spec_from_config
     from jaxmotion.pipelines.checkpoints import (adm_text_tokens, adm_view, resolve_checkpoints,
                                                  text_adm_for, weights_config)
@@ -86,9 +87,15 @@ def _check_models(checkpoints) -> _Models:
             raise GenerateError(f"{text_adm} and {adm_file} must read the text the same way "
                                 "(model.text_tokens) and see the same view (crop.centre); "
                                 f"remove {text_adm.name} to use {Path(adm_file).name} alone")
+    objects = None
+    if pipeline == "object-centric":
+        from jaxmotion.pipelines.checkpoints import resolve_object_checkpoints
+
+        objects = resolve_object_checkpoints(object_checkpoints)
+        mcfg = weights_config(objects[1])
     return _Models(Path(adm_file), Path(amdm_file), text_adm, adm_cfg,
                    crop_spec_from_config(mcfg), int(mcfg["max_frames"]),
-                   adm_view(adm_cfg) == "room")
+                   adm_view(adm_cfg) == "room", objects)
 
 
 def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None = None,
@@ -115,7 +122,7 @@ def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None
                                                if v is not None})
     from jaxmotion.text.condition import check_text
 
-    models = _check_models(opts.checkpoints)
+    models = _check_models(opts.checkpoints, opts.object_checkpoints, opts.pipeline)
     text = check_text(text)
     return _run(scene, text, opts, models, progress)
 
@@ -189,13 +196,26 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         if not models.room_view:
             lap("region")
 
-    joints, aff, crop, excluded, n_cand, n_mot = _synthesize(
-        room, centre, chosen, instruction.anchor_first, emb, opts, models, view, root,
-        (adm_sampler, amdm_sampler), aot_dir, versions)
+    if models.objects is not None:  # the object-centric pipeline: sensors around the target
+        from jaxmotion.pipelines.object_centric import sample_in_room
+
+        if chosen is None:
+            raise GenerateError("the object-centric pipeline needs a target object, and the "
+                                "text names none of this room's: name one, or pass object_id")
+        joints, crop = sample_in_room(room, centre, chosen, instruction.anchor_first, emb, opts,
+                                      models.objects, root, aot_dir, versions)
+        aff, excluded, n_cand, n_mot = (np.zeros((k, len(crop[0]), 6), np.float32), (), 0,
+                                        opts.motion_candidates)
+    else:
+        joints, aff, crop, excluded, n_cand, n_mot = _synthesize(
+            room, centre, chosen, instruction.anchor_first, emb, opts, models, view, root,
+            (adm_sampler, amdm_sampler), aot_dir, versions)
     lap("sample")
     smplx, err = {}, np.full(k, np.nan, np.float32)
     if opts.fit:
-        smplx, err = _fit(joints, opts.fit_iters, aot_dir, versions)
+        from jaxmotion.body.fit import fit_bodies
+
+        smplx, err = fit_bodies(joints, opts.fit_iters, aot_dir, versions)
         lap("fit")
     pick, rot, shift = crop
     view_index, view_maps = view if view is not None else (None, None)
@@ -272,24 +292,3 @@ def _synthesize(room, centre, chosen, anchor_first: bool, emb, opts: GenerateOpt
     joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
     aff = np.asarray(res.get("affordance", np.zeros((k, len(pick), 6))), np.float32)
     return joints, aff, (pick, rot, shift), (() if room_view else excluded), n_cand, n_mot
-
-
-def _fit(joints, iters: int, aot_dir, versions):
-    """SMPL-X parameters fitted to ``joints [K,T,22,3]`` and the mean joint error ``[K]`` (m)."""
-    import jax
-
-    from jaxmotion.body import fit_joints_to_body
-    from jaxmotion.compiled import cached_call, digest
-
-    names = ("global_orient", "body_pose", "transl", "betas", "mean_error")
-
-    def build_fit():
-        def f(j):
-            bf = fit_joints_to_body(j, iters=iters, fps=SCENE_FPS)
-            return tuple(getattr(bf, n) for n in names)
-        return f
-
-    out = jax.device_get(cached_call(aot_dir, "fit", digest(versions, iters, SCENE_FPS),
-                                     build_fit, (joints,)))
-    smplx = {n: np.asarray(v, np.float32) for n, v in zip(names[:4], out[:4], strict=True)}
-    return smplx, np.asarray(out[4], np.float32)

@@ -20,7 +20,7 @@ from jaxmotion.errors import GenerateError
 __all__ = [
     "DEFAULT_ADM_CANDIDATES", "DEFAULT_ADM_STEPS", "DEFAULT_CONSISTENCY", "DEFAULT_GUIDANCE",
     "DEFAULT_MOTION_CANDIDATES", "DEFAULT_STEPS", "DEFAULT_TEXT", "GROUNDINGS", "MAX_ADM_CANDIDATES",
-    "MAX_MOTION_CANDIDATES", "MAX_SAMPLES", "GenerateOptions", "check_candidates",
+    "MAX_MOTION_CANDIDATES", "MAX_SAMPLES", "PIPELINES", "GenerateOptions", "check_candidates",
     "check_consistency", "check_guidance", "check_positive_int",
 ]
 
@@ -48,6 +48,8 @@ MAX_SAMPLES = 256
 MAX_ADM_CANDIDATES = 32
 MAX_MOTION_CANDIDATES = 16
 GROUNDINGS = ("auto", "adm")
+#: The generation pipelines (``pipeline`` option); the first is the default.
+PIPELINES = ("affordance", "object-centric")
 
 
 def check_positive_int(name: str, value, lo: int = 1, hi: int | None = None) -> int:
@@ -112,6 +114,12 @@ class GenerateOptions:
         and the one reaching the target at the anchor frame is kept (1..16).
       checkpoints: None (shipped), a folder with ``adm.safetensors`` / ``amdm.safetensors``,
         or an ``(adm, amdm)`` pair of workdirs / files.
+      pipeline: ``affordance`` (ADM → AMDM, the default) or ``object-centric`` (sensors →
+        trajectory → completion, Cen et al. 2024; needs a target object, grounded as for the
+        affordance pipeline, whose ADM still chooses among same-class candidates).
+      object_checkpoints: the object-centric models: None (shipped), a folder with
+        ``trajectory.safetensors`` / ``completion.safetensors``, or a ``(trajectory,
+        completion)`` pair of workdirs / files.
       num_points: surface samples taken from a mesh (None: the loader's default).
       fit: fit SMPL-X bodies (needed to write BVH / GLB); fit_iters: LBFGS iterations.
       aot: keep the traced programs on disk (:mod:`jaxmotion.compiled`).
@@ -128,6 +136,8 @@ class GenerateOptions:
     adm_candidates: int = DEFAULT_ADM_CANDIDATES
     motion_candidates: int = DEFAULT_MOTION_CANDIDATES
     checkpoints: str | Path | tuple | None = None
+    pipeline: str = "affordance"
+    object_checkpoints: str | Path | tuple | None = None
     num_points: int | None = None
     fit: bool = True
     fit_iters: int = 100
@@ -158,6 +168,11 @@ class GenerateOptions:
         put("fit_iters", check_positive_int("fit_iters", self.fit_iters))
         if isinstance(self.checkpoints, list):
             put("checkpoints", tuple(self.checkpoints))
+        if isinstance(self.object_checkpoints, list):
+            put("object_checkpoints", tuple(self.object_checkpoints))
+        if self.pipeline not in PIPELINES:
+            raise GenerateError(f"pipeline must be one of {', '.join(PIPELINES)}, got "
+                                f"{self.pipeline!r}")
 
     @classmethod
     def build(cls, **kwargs) -> GenerateOptions:
@@ -168,5 +183,5 @@ class GenerateOptions:
         if unknown:
             raise GenerateError(f"unknown option(s) {', '.join(unknown)}; valid: "
                                 + ", ".join(sorted(names)))
-        keep_none = {"object_id", "checkpoints", "num_points"}
+        keep_none = {"object_id", "checkpoints", "num_points", "object_checkpoints"}
         return cls(**{k: v for k, v in kwargs.items() if v is not None or k in keep_none})

@@ -245,3 +245,46 @@ def test_pipeline_samples_motions_with_exact_bones(data, runs):
     with pytest.raises(ValueError, match="not a completion one"):
         ObjectCentricPipeline.from_files(runs["trajectory"][1].workdir / "model.safetensors",
                                          runs["trajectory"][1].workdir / "model.safetensors")
+
+
+# ------------------------------------------------------------------------------ generate, eval
+def test_generate_with_the_object_centric_pipeline(runs, tmp_path):
+    from jaxmotion import generate
+    from jaxmotion.errors import GenerateError
+
+    files = (str(runs["trajectory"][1].workdir), str(runs["completion"][1].workdir))
+    res = generate("demo", "sit on the chair next to the table", pipeline="object-centric",
+                   object_checkpoints=files, samples=2, steps=2, motion_candidates=2, fit=False,
+                   aot=False)
+    assert res.joints.shape == (2, 120, 22, 3) and np.isfinite(res.joints).all()
+    assert res.target_id is not None and res.grounding in ("class", "scene_graph", "adm")
+    # the crop is centred on the target: the motions are in the room's frame around it
+    target = res.scene.xyz[res.scene.instance == res.target_id]
+    assert np.linalg.norm(res.joints[:, :, 0, :2].mean((0, 1)) - target[:, :2].mean(0)) < 3.0
+    with pytest.raises(GenerateError, match="no such checkpoint file"):
+        generate("demo", "sit on the chair", pipeline="object-centric",
+                 object_checkpoints=tmp_path, fit=False)
+    with pytest.raises(GenerateError, match="not a completion one"):
+        generate("demo", "sit on the chair", pipeline="object-centric",
+                 object_checkpoints=(files[0], files[0]), fit=False)
+    with pytest.raises(GenerateError, match="pipeline must be one of"):
+        generate("demo", "sit on the chair", pipeline="objects")
+
+
+def test_eval_scores_an_object_centric_row(data, runs):
+    from jaxmotion.eval.runner import evaluate, parse_model
+
+    traj, comp = runs["trajectory"][1].workdir, runs["completion"][1].workdir
+    spec = parse_model(f"oc=jaxmotion/assets/adm.safetensors,jaxmotion/assets/amdm.safetensors,"
+                       f"ddim2,trajectory={traj},completion={comp}")
+    assert spec.object_centric and spec.sampler_label.startswith("object-centric")
+    with pytest.raises(ValueError, match="needs both"):
+        parse_model(f"oc=a,b,ddim2,trajectory={traj}")
+    with pytest.raises(ValueError, match="does not use"):
+        parse_model(f"oc=a,b,ddim2,trajectory={traj},completion={comp},affordance=gt")
+    report = evaluate(data / "data", [spec], split="test", num_cases=2, samples=1,
+                      replications=1, body=False, progress=False, ground_truth=False)
+    row = report["models"]["oc"]
+    assert row["pipeline"] == "object-centric" and row["scene_input"] == "sensors"
+    for key in ("goal_distance", "teleport", "pelvis_speed_p99"):
+        assert np.isfinite(row["summary"][key]["mean"]), key

@@ -69,7 +69,7 @@ from jaxmotion.geometry.rotations import (
 )
 from jaxmotion.geometry.skeleton import NUM_BETAS, NUM_JOINTS, PARENTS, Skeleton, rest_joints
 
-__all__ = ["BodyFit", "FitWeights", "fit_joints_to_body", "initial_pose"]
+__all__ = ["BodyFit", "FitWeights", "fit_bodies", "fit_joints_to_body", "initial_pose"]
 
 _CHILDREN = tuple(tuple(c for c in range(NUM_JOINTS) if PARENTS[c] == j) for j in range(NUM_JOINTS))
 # Index tables are kept as tuples and turned into fresh numpy arrays where used: jax
@@ -421,3 +421,25 @@ def fit_joints_to_body(
         weights=weights,
     )  # fmt: skip
     return out if batched else jax.tree_util.tree_map(lambda x: x[0], out)
+
+
+def fit_bodies(joints, iters: int, aot_dir=None, versions=()):
+    """SMPL-X parameters fitted to ``joints [K,T,22,3]`` (``global_orient``, ``body_pose``,
+    ``transl``, ``betas``) and the mean joint error ``[K]`` (m), as ``generate`` fits them:
+    through a compiled program kept in ``aot_dir`` (:func:`jaxmotion.compiled.cached_call`,
+    keyed with ``versions``; None: not kept)."""
+    from jaxmotion.compiled import cached_call, digest
+    from jaxmotion.constants import SCENE_FPS
+
+    names = ("global_orient", "body_pose", "transl", "betas", "mean_error")
+
+    def build_fit():
+        def f(j):
+            bf = fit_joints_to_body(j, iters=iters, fps=SCENE_FPS)
+            return tuple(getattr(bf, n) for n in names)
+        return f
+
+    out = jax.device_get(cached_call(aot_dir, "fit", digest(versions, iters, SCENE_FPS),
+                                     build_fit, (joints,)))
+    smplx = {n: np.asarray(v, np.float32) for n, v in zip(names[:4], out[:4], strict=True)}
+    return smplx, np.asarray(out[4], np.float32)

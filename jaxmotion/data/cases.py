@@ -27,7 +27,8 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
     has no semantic labels), ``instance`` (the crop points' instance ids), ``objects`` (the
     room's object table, a list of dicts, empty when the scene has none), ``target_id``,
     ``rotation``,
-    ``shift`` (``x_world = x_crop @ rotation + shift``), ``file``.
+    ``shift`` (``x_world = x_crop @ rotation + shift``), ``file``, ``normals`` (the crop points'
+    normals, crop frame), ``betas`` (the sample's body shape).
 
     ``centres``: one xy crop centre per case (world frame) replacing the crop's placement
     around the motion, e.g. where ``jaxmotion generate`` would crop
@@ -56,6 +57,7 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
         s = load_sample(f)
         with np.load(Path(data_dir) / "scenes" / f"{s['scene_id']}.npz") as sc:
             xyz, rgb, inst = sc["xyz"], sc["rgb"], sc["instance"]
+            normal = sc["normal"] if "normal" in sc.files else np.zeros_like(xyz)
             sem = sc["semantic"] if "semantic" in sc.files else None
             objects = json.loads(str(sc["objects"])) if "objects" in sc.files else []
         c = crop_sample(np.random.default_rng([seed, i]), xyz, rgb, inst, s["joints"], s["mask"],
@@ -94,14 +96,16 @@ def load_cases(data_dir, split: str, model_config: dict, *, num_cases: int | Non
                           colors=c.colors, mask=mask, gt=gt, target_mask=c.target_mask,
                           target_class_mask=class_mask, instance=inst[c.indices],
                           objects=objects, rotation=c.rotation, shift=c.shift, file=f.name,
-                          view=view, target_id=int(s["target_id"]), **goal))
+                          view=view, target_id=int(s["target_id"]),
+                          normals=(normal[c.indices] @ c.rotation.T).astype(np.float32),
+                          betas=np.asarray(s["betas"], np.float32), **goal))
     return cases, spec
 
 
 def case_inputs(cases: list[dict], idx) -> dict:
     """The pipeline's inputs for cases ``idx`` (as :func:`load_cases` makes them), stacked:
-    ``points``, ``colors``, ``mask``, ``view`` (stacked, or None without views) and
-    ``exclude`` (stacked, or None when the cases have none)."""
+    ``points``, ``colors``, ``mask``, ``normals``, ``betas``, ``view`` (stacked, or None
+    without views) and ``exclude`` (stacked, or None when the cases have none)."""
     stack = lambda get: np.stack([get(cases[i]) for i in idx])  # noqa: E731
     exclude = None
     if cases[idx[0]].get("exclude") is not None:
@@ -110,4 +114,5 @@ def case_inputs(cases: list[dict], idx) -> dict:
     if cases[idx[0]].get("view") is not None:
         view = {k: stack(lambda c, k=k: c["view"][k]) for k in ("points", "colors", "in_crop")}
     return {"points": stack(lambda c: c["points"]), "colors": stack(lambda c: c["colors"]),
-            "mask": stack(lambda c: c["mask"]), "view": view, "exclude": exclude}
+            "mask": stack(lambda c: c["mask"]), "view": view, "exclude": exclude,
+            "normals": stack(lambda c: c["normals"]), "betas": stack(lambda c: c["betas"])}

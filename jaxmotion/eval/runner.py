@@ -80,10 +80,18 @@ class ModelSpec:
     adm_candidates: int = 1  # ADM maps per sample; the one lighting the known target is kept
     adm_steps: int | None = None  # DDIM steps of the ADM stage (None: ``steps``)
     motion_candidates: int = 1  # motions per map; the one reaching the known target is kept
+    trajectory: str | None = None  # with completion: the object-centric pipeline samples the row
+    completion: str | None = None  # (the ADM still finds the generate protocol's regions)
+
+    @property
+    def object_centric(self) -> bool:
+        return self.trajectory is not None
 
     @property
     def sampler_label(self) -> str:
         label = "DDPM (all steps)" if self.method == "ddpm" else f"DDIM-{self.steps}"
+        if self.object_centric:
+            label = "object-centric, " + label
         guided = [f"{stage} w={g:g}" for stage, g in
                   (("ADM", self.adm_guidance), ("AMDM", self.amdm_guidance)) if g != 1.0]
         if self.consistency:
@@ -110,7 +118,8 @@ def _checked(text: str, check, *args):
 
 def parse_model(text: str) -> ModelSpec:
     """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,consistency=S]
-    [,affordance=adm|gt][,adm_candidates=C][,adm_steps=N][,motion_candidates=M]`` →
+    [,affordance=adm|gt][,adm_candidates=C][,adm_steps=N][,motion_candidates=M]
+    [,trajectory=T,completion=C]`` →
     :class:`ModelSpec` (the
     ``--model`` syntax). ``adm_steps``: DDIM steps of the ADM stage when they differ from the
     sampler's (as ``jaxmotion generate --adm-steps``).
@@ -121,7 +130,10 @@ def parse_model(text: str) -> ModelSpec:
     --motion-candidates``. ``consistency``: the
     strength in [0, 1] of affordance-consistency guidance on the AMDM (0, the default, = off).
     ``affordance=gt`` feeds the AMDM the ground-truth affordance maps instead of the ADM's: the
-    row then measures the AMDM alone."""
+    row then measures the AMDM alone. ``trajectory`` and ``completion`` (workdirs or files,
+    both or neither): the object-centric pipeline samples the row's motions (the sampler and
+    ``amdm_guidance`` apply to both of its stages), while the ADM and AMDM still set the
+    crops and find the generate protocol's regions."""
     name, sep, rest = text.partition("=")
     usage = (f"--model {text!r}: expected NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G]"
              "[,amdm_guidance=G][,consistency=S][,affordance=adm|gt], e.g. "
@@ -144,8 +156,12 @@ def parse_model(text: str) -> ModelSpec:
                              "or ddpm")
     guidance = {"adm_guidance": 1.0, "amdm_guidance": 1.0}
     affordance, consistency, candidates, adm_steps, motions = "adm", 0.0, 1, None, 1
+    objects = {}
     for opt in options:
         key, _, value = opt.partition("=")
+        if key in ("trajectory", "completion"):
+            objects[key] = value
+            continue
         if key in ("adm_candidates", "adm_steps", "motion_candidates"):
             if not value.isdigit() or int(value) < 1:
                 raise ValueError(f"--model {text!r}: {key} must be an integer ≥ 1, "
@@ -172,16 +188,22 @@ def parse_model(text: str) -> ModelSpec:
             raise ValueError(f"--model {text!r}: unknown option {key!r}; valid: "
                              + ", ".join([*guidance, "consistency", "affordance",
                                           "adm_candidates", "adm_steps",
-                                          "motion_candidates"]))
+                                          "motion_candidates", "trajectory", "completion"]))
         try:
             guidance[key] = float(value)
         except ValueError:
             raise ValueError(f"--model {text!r}: {key} must be a number, got {value!r}") from None
         if not guidance[key] > 0:
             raise ValueError(f"--model {text!r}: {key} must be > 0 (1 = no guidance)")
+    if objects and set(objects) != {"trajectory", "completion"}:
+        raise ValueError(f"--model {text!r}: the object-centric pipeline needs both "
+                         "trajectory=PATH and completion=PATH")
+    if objects and (affordance == "gt" or consistency or candidates > 1):
+        raise ValueError(f"--model {text!r}: affordance, consistency and adm_candidates act on "
+                         "affordance maps, which the object-centric pipeline does not use")
     return ModelSpec(name, positional[0], positional[1], method, steps, **guidance,
                      affordance=affordance, consistency=consistency, adm_candidates=candidates,
-                     adm_steps=adm_steps, motion_candidates=motions)
+                     adm_steps=adm_steps, motion_candidates=motions, **objects)
 
 
 # --------------------------------------------------------------------------- per case
@@ -460,8 +482,16 @@ def evaluate(
         emb = pipe.embed_text([c["text"] for c in cases], encoder)
         amdm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.amdm_guidance,
                                    consistency=spec.consistency)
-        two_stage = pipe.amdm.cfg.scene_input == "affordance"
+        two_stage = pipe.amdm.cfg.scene_input == "affordance" and not spec.object_centric
         oracle = spec.affordance == "gt"
+        objects = None
+        if spec.object_centric:
+            from jaxmotion.models.adm import pooled_text
+            from jaxmotion.models.weights import weights_path
+            from jaxmotion.pipelines.object_centric import ObjectCentricPipeline
+
+            objects = ObjectCentricPipeline.from_files(weights_path(spec.trajectory),
+                                                       weights_path(spec.completion))
         if spec.adm_candidates > 1 and (protocol != "generate" or oracle or pipe.room_view):
             raise ValueError(f"--model {spec.name!r}: adm_candidates picks the ADM map that "
                              "lights the object generate's region was centred on; it needs "
@@ -489,15 +519,25 @@ def evaluate(
                 chunk = rows[start:start + batch_size]
                 idx = [ci for ci, _ in chunk] + [chunk[-1][0]] * (batch_size - len(chunk))
                 x = case_inputs(cases, idx)
-                res = jax.device_get(pipe.sample(
-                    jax.random.fold_in(key, start), x["points"], x["colors"], take_text(emb, idx),
-                    x["mask"], adm=adm_sampler, amdm=amdm_sampler,
-                    affordance=gt_maps[idx] if oracle else None, view=x["view"],
-                    exclude=x["exclude"], candidates=spec.adm_candidates,
-                    target=None if regions is None else np.stack(
-                        [cases[i]["chosen_mask"] for i in idx]),
-                    motion_candidates=spec.motion_candidates,
-                    anchor_first=np.array([anchor_is_first(cases[i]["text"]) for i in idx])))
+                if objects is not None:
+                    target = np.stack([cases[i]["chosen_mask" if regions is not None
+                                             else "target_mask"] for i in idx])
+                    res = jax.device_get(objects.sample(
+                        jax.random.fold_in(key, start), x["points"], x["normals"], target,
+                        pooled_text(take_text(emb, idx)), x["betas"], x["mask"],
+                        trajectory=amdm_sampler, completion=amdm_sampler,
+                        motion_candidates=spec.motion_candidates,
+                        anchor_first=np.array([anchor_is_first(cases[i]["text"]) for i in idx])))
+                else:
+                    res = jax.device_get(pipe.sample(
+                        jax.random.fold_in(key, start), x["points"], x["colors"], take_text(emb, idx),
+                        x["mask"], adm=adm_sampler, amdm=amdm_sampler,
+                        affordance=gt_maps[idx] if oracle else None, view=x["view"],
+                        exclude=x["exclude"], candidates=spec.adm_candidates,
+                        target=None if regions is None else np.stack(
+                            [cases[i]["chosen_mask"] for i in idx]),
+                        motion_candidates=spec.motion_candidates,
+                        anchor_first=np.array([anchor_is_first(cases[i]["text"]) for i in idx])))
                 for j, (ci, k) in enumerate(chunk):
                     joints[ci, k] = res["joints"][j]
                     if two_stage:
@@ -529,7 +569,11 @@ def evaluate(
         keys = sorted({k for rep in reps for k in rep})
         report["models"][spec.name] = {
             "adm": str(spec.adm), "amdm": str(spec.amdm), "sampler": spec.sampler_label,
-            "two_stage": two_stage, "scene_input": pipe.amdm.cfg.scene_input,
+            "two_stage": two_stage,
+            "scene_input": "sensors" if spec.object_centric else pipe.amdm.cfg.scene_input,
+            "pipeline": "object-centric" if spec.object_centric else "affordance",
+            **({"trajectory": str(spec.trajectory), "completion": str(spec.completion)}
+               if spec.object_centric else {}),
             "affordance": "ground truth" if oracle else ("adm" if two_stage else None),
             "adm_arch": _adm_arch(spec.adm),
             "replications": reps,

@@ -41,7 +41,7 @@ from flax import nnx
 from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.diffusion.samplers import SamplerSpec
 
-__all__ = ["AffordancePipeline", "adm_map_one", "adm_maps_one", "take_text"]
+__all__ = ["AffordancePipeline", "adm_map_one", "adm_maps_one", "select_motion", "take_text"]
 
 
 def take_text(text, index):
@@ -430,25 +430,8 @@ class AffordancePipeline:
         that teleports (:func:`jaxmotion.eval.plausibility.teleports`) is never kept while
         one of its example's candidates does not: proximity is never bought with a jump. An
         example with no target point keeps the first plausible candidate."""
-        from jaxmotion.eval.plausibility import teleports
-
         motions = self.sample_motions(key, points, feats, text_emb, mask, spec, candidates)
-        mask = jnp.asarray(mask, bool)
-        b, m = motions.shape[:2]
-        jumps = teleports(motions.reshape(b * m, *motions.shape[2:]),
-                          jnp.repeat(mask, m, axis=0)).reshape(b, m)
-        t_last = mask.shape[1] - 1 - jnp.argmax(mask[:, ::-1], axis=1)
-        first = (jnp.zeros(mask.shape[0], bool) if anchor_first is None
-                 else jnp.asarray(anchor_first, bool))
-        anchor = jnp.where(first, jnp.argmax(mask, axis=1), t_last)
-        pose = jnp.take_along_axis(motions, anchor[:, None, None, None, None], axis=2)[:, :, 0]
-        d = jnp.linalg.norm(jnp.asarray(points)[:, None, :, None] - pose[:, :, None], axis=-1)
-        t = jnp.asarray(target, bool)[:, None, :, None]  # [B,1,N,1]
-        score = jnp.where(t, d, jnp.inf).min(axis=(2, 3))  # [B,C]
-        score = jnp.where(jnp.isfinite(score), score, 0.0)  # no target point: all tie
-        smooth = ~jumps | jnp.all(jumps, axis=1, keepdims=True)  # all jump: all compete
-        best = jnp.argmin(jnp.where(smooth, score, jnp.inf), axis=1)  # ties: the first
-        return jnp.take_along_axis(motions, best[:, None, None, None, None], axis=1)[:, 0]
+        return select_motion(motions, points, target, mask, anchor_first)
 
     @staticmethod
     @jax.jit
@@ -458,6 +441,35 @@ class AffordancePipeline:
         from jaxmotion.geometry import carry_field
 
         return jax.vmap(carry_field)(points, view_points, view_maps)
+
+
+def select_motion(motions, points, target, mask, anchor_first=None):
+    """Of the candidates ``motions [B, M, T, 22, 3]`` of each example, the one whose body
+    comes closest to ``target [B, N]`` (points of the target object among ``points
+    [B, N, 3]``, same frame) at the anchor frame: the first valid frame of ``mask [B, T]``
+    where ``anchor_first [B]`` (getting up from the object; None: all False), else the last.
+    Closeness is the smallest joint-to-target-point distance. A motion that teleports
+    (:func:`jaxmotion.eval.plausibility.teleports`) is never kept while one of its example's
+    candidates does not; an example with no target point keeps its first plausible
+    candidate. Returns ``[B, T, 22, 3]``; every pipeline's best-of-M uses it."""
+    from jaxmotion.eval.plausibility import teleports
+
+    mask = jnp.asarray(mask, bool)
+    b, m = motions.shape[:2]
+    jumps = teleports(motions.reshape(b * m, *motions.shape[2:]),
+                      jnp.repeat(mask, m, axis=0)).reshape(b, m)
+    t_last = mask.shape[1] - 1 - jnp.argmax(mask[:, ::-1], axis=1)
+    first = (jnp.zeros(mask.shape[0], bool) if anchor_first is None
+             else jnp.asarray(anchor_first, bool))
+    anchor = jnp.where(first, jnp.argmax(mask, axis=1), t_last)
+    pose = jnp.take_along_axis(motions, anchor[:, None, None, None, None], axis=2)[:, :, 0]
+    d = jnp.linalg.norm(jnp.asarray(points)[:, None, :, None] - pose[:, :, None], axis=-1)
+    t = jnp.asarray(target, bool)[:, None, :, None]  # [B,1,N,1]
+    score = jnp.where(t, d, jnp.inf).min(axis=(2, 3))  # [B,C]
+    score = jnp.where(jnp.isfinite(score), score, 0.0)  # no target point: all tie
+    smooth = ~jumps | jnp.all(jumps, axis=1, keepdims=True)  # all jump: all compete
+    best = jnp.argmin(jnp.where(smooth, score, jnp.inf), axis=1)  # ties: the first
+    return jnp.take_along_axis(motions, best[:, None, None, None, None], axis=1)[:, 0]
 
 
 def _tile(tree, b):

@@ -14,7 +14,8 @@ from pathlib import Path
 
 from jaxmotion.errors import GenerateError
 
-__all__ = ["TEXT_ADM", "adm_text_tokens", "adm_view", "default_checkpoints", "load_pipeline",
+__all__ = ["OBJECT_CENTRIC_FILES", "TEXT_ADM", "load_object_pipeline",
+           "resolve_object_checkpoints", "adm_text_tokens", "adm_view", "default_checkpoints", "load_pipeline",
            "resolve_checkpoints", "text_adm_for", "weights_config"]
 
 _ASSETS = Path(__file__).resolve().parent.parent / "assets"
@@ -94,3 +95,47 @@ def weights_config(path) -> dict:
         return read_config(path)
     except (OSError, ValueError) as e:
         raise GenerateError(f"{path}: not a jaxmotion weights file ({e})") from e
+
+
+#: The object-centric pipeline's files in a checkpoint folder (and in the shipped assets).
+OBJECT_CENTRIC_FILES = ("trajectory.safetensors", "completion.safetensors")
+
+
+def resolve_object_checkpoints(checkpoints) -> tuple[Path, Path]:
+    """``(trajectory file, completion file)`` of the object-centric pipeline: None (the shipped
+    ones), a folder holding :data:`OBJECT_CENTRIC_FILES`, or a pair of training workdirs or
+    files; :class:`GenerateError` when one is missing."""
+    if isinstance(checkpoints, (tuple, list)):
+        if len(checkpoints) != 2:
+            raise GenerateError("object checkpoints as a pair must be (trajectory, completion) "
+                                "workdirs or files")
+        from jaxmotion.models.weights import weights_path
+
+        paths = [weights_path(p) for p in checkpoints]
+    else:
+        folder = _ASSETS if checkpoints is None else Path(checkpoints)
+        paths = [folder / name for name in OBJECT_CENTRIC_FILES]
+    for p in paths:
+        if not p.is_file():
+            how = ("train them with python -m jaxmotion.train --config configs/trajectory.py "
+                   "and configs/completion.py, and pass their workdirs")
+            raise GenerateError(f"{p}: no such checkpoint file; the object-centric pipeline "
+                                f"needs {' and '.join(OBJECT_CENTRIC_FILES)} ({how})")
+    for p, task in zip(paths, ("trajectory", "completion"), strict=True):
+        got = weights_config(p).get("task")
+        if got != task:
+            raise GenerateError(f"{p} is a {got!r} checkpoint, not a {task} one")
+    return paths[0], paths[1]
+
+
+@functools.lru_cache(maxsize=4)
+def load_object_pipeline(trajectory: str, completion: str):
+    """The :class:`~jaxmotion.pipelines.object_centric.ObjectCentricPipeline` of two files
+    (kept for the process)."""
+    from jaxmotion.pipelines.object_centric import ObjectCentricPipeline
+
+    try:
+        return ObjectCentricPipeline.from_files(trajectory, completion)
+    except (KeyError, ValueError) as e:
+        raise GenerateError(f"checkpoints {trajectory} and {completion} do not load together: "
+                            f"{e}") from e

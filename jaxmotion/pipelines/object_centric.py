@@ -36,6 +36,7 @@ __all__ = [
     "TRAJECTORY_HALF_SIZE",
     "ObjectCentricPipeline",
     "crop_sensors",
+    "sample_in_room",
     "trajectory_sensors",
 ]
 
@@ -170,3 +171,91 @@ class ObjectCentricPipeline:
                                 (1, nt, c_mean.shape[0]), cond, {**cond, **null})
         motion = y[0] * c_std + c_mean
         return {"trajectory": traj, "motion": motion, "joints": motion_to_joints(motion, betas)}
+
+    def sample(self, key, points, normals, target, text_emb, betas, mask, *,
+               trajectory: SamplerSpec = DEFAULT_SPEC, completion: SamplerSpec = DEFAULT_SPEC,
+               motion_candidates: int = 1, anchor_first=None) -> dict:
+        """Motions for a batch of crops, the best of ``motion_candidates`` each.
+
+        Args:
+          key: PRNG key; points, normals ``[B, N, 3]``; target ``[B, N]`` bool (the target
+          object's points); text_emb ``[B, text_dim]``; betas ``[B, 10]``; mask ``[B, T]``;
+          trajectory, completion: the two stages' samplers; anchor_first ``[B]`` bool or None
+          (as :func:`~jaxmotion.pipelines.affordance.select_motion`, which picks among the
+          candidates: never a teleporting one while another is smooth, else the closest to
+          the target at the anchor frame).
+        Returns:
+          ``{"joints": [B, T, 22, 3]}`` in the crop frame.
+        """
+        from jaxmotion.pipelines.affordance import select_motion
+
+        b, m = points.shape[0], int(motion_candidates)
+        keys = jax.random.split(key, b * m).reshape(b, m)
+
+        def one(k, p, n, t, e, bt, mk):
+            return self.sample_one(k, p, n, t, e, bt, mk, trajectory_spec=trajectory,
+                                   completion_spec=completion)["joints"]
+
+        per_candidate = jax.vmap(one, in_axes=(0, None, None, None, None, None, None))
+        joints = jax.vmap(per_candidate)(keys, points, normals, target, text_emb, betas, mask)
+        if m == 1:
+            return {"joints": joints[:, 0]}
+        return {"joints": select_motion(joints, points, target, mask, anchor_first)}
+
+
+def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts, files, root,
+                   aot_dir, versions):
+    """``generate``'s synthesis stage with the object-centric pipeline: the K motions in the
+    scene's frame for the crop square at ``centre`` around the target ``chosen``.
+
+    Args:
+      room: the :class:`~jaxmotion.scene.Scene`; centre: the crop square's xy centre.
+      chosen: the target's instance id; anchor_first: the text gets up from it.
+      text_emb: the sentence embedding ``[1, 384]`` (or a token-state dict; its pooled part).
+      opts: :class:`~jaxmotion.options.GenerateOptions` (samples, seed, steps, guidance[1],
+        motion_candidates); files: ``(trajectory, completion)`` weights files.
+      root: the run's PRNG key (its second split samples, as the affordance pipeline's);
+      aot_dir, versions: the compiled-program cache (:func:`jaxmotion.compiled.cached_call`).
+    Returns:
+      ``(joints [K, T, 22, 3], (crop point indices, rotation, shift))``.
+    """
+    import numpy as np
+
+    from jaxmotion.compiled import cached_call, digest
+    from jaxmotion.data.crop import crop_at, crop_spec_from_config
+    from jaxmotion.errors import GenerateError
+    from jaxmotion.models.adm import pooled_text
+    from jaxmotion.models.weights import read_config
+    from jaxmotion.pipelines.checkpoints import load_object_pipeline
+
+    run_cfg = read_config(files[1])
+    spec, frames = crop_spec_from_config(run_cfg), int(run_cfg["max_frames"])
+    try:
+        pick, pts, shift, rot = crop_at(np.random.default_rng([opts.seed, 1]), room.xyz,
+                                        centre, spec)
+    except ValueError as e:
+        raise GenerateError(f"the scene has no points near the chosen region: {e}") from e
+    on_target = room.instance[pick] == chosen
+    if not on_target.any():
+        raise GenerateError(f"object {chosen} has no point in the {spec.size} m square the "
+                            "object-centric models see; is it an object of the room?")
+    k = opts.samples
+    tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))  # noqa: E731
+    normals = (np.asarray(room.normal[pick], np.float32) @ rot.T).astype(np.float32)
+    args = (np.asarray(jax.random.key_data(root)), tile(pts), tile(normals), tile(on_target),
+            tile(np.asarray(pooled_text(text_emb), np.float32)[0]),
+            np.zeros((k, 10), np.float32), np.ones((k, frames), bool), np.full(k, anchor_first))
+    stage = SamplerSpec("ddim", opts.steps, guidance=opts.guidance[1])
+    n_mot = opts.motion_candidates
+
+    def build():
+        pipe = load_object_pipeline(str(files[0]), str(files[1]))
+        main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]  # noqa: E731
+        return lambda kd, p, n, t, e, b, m, f: pipe.sample(
+            main(kd), p, n, t, e, b, m, trajectory=stage, completion=stage,
+            motion_candidates=n_mot, anchor_first=f)
+
+    res = cached_call(aot_dir, "sample-object-centric",
+                      digest(versions, stage, n_mot, Path(files[0]), Path(files[1])), build, args)
+    joints = (np.asarray(jax.device_get(res["joints"])) @ rot + shift).astype(np.float32)
+    return joints, (pick, rot, shift)

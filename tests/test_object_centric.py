@@ -288,3 +288,22 @@ def test_eval_scores_an_object_centric_row(data, runs):
     assert row["pipeline"] == "object-centric" and row["scene_input"] == "sensors"
     for key in ("goal_distance", "teleport", "pelvis_speed_p99"):
         assert np.isfinite(row["summary"][key]["mean"]), key
+
+
+def test_completion_holds_the_stage_one_trajectory_unless_told_not_to(data, runs):
+    pipe = ObjectCentricPipeline.from_files(runs["trajectory"][1].workdir / "model.safetensors",
+                                            runs["completion"][1].workdir / "model.safetensors")
+    ds = Dataset(data / "data", "test", CropSpec(num_points=256, rotate=False))
+    b = ds.host_batch([0], np.random.default_rng(0))
+    args = (jax.random.key(0), b["points"][0], b["normals"][0], b["target_mask"][0],
+            jnp.zeros(384), b["betas"][0], b["mask"][0])
+    spec = SamplerSpec("ddim", 3)
+    kept = pipe.sample_one(*args, trajectory_spec=spec, completion_spec=spec)
+    np.testing.assert_allclose(np.asarray(kept["motion"][:, :9]),
+                               np.asarray(kept["trajectory"]), atol=1e-5)
+    own = pipe.sample_one(*args, trajectory_spec=spec, completion_spec=spec,
+                          keep_trajectory=False)
+    np.testing.assert_array_equal(np.asarray(own["trajectory"]), np.asarray(kept["trajectory"]))
+    assert np.abs(np.asarray(own["motion"][:, :9]) - np.asarray(own["trajectory"])).max() > 1e-3
+    np.testing.assert_allclose(np.asarray(kept["joints"][:, 0]),
+                               np.asarray(kept["trajectory"][:, :3]), atol=1e-5)

@@ -82,6 +82,7 @@ class ModelSpec:
     motion_candidates: int = 1  # motions per map; the one reaching the known target is kept
     trajectory: str | None = None  # with completion: the object-centric pipeline samples the row
     completion: str | None = None  # (the ADM still finds the generate protocol's regions)
+    keep_trajectory: bool = True  # object-centric: the completion holds the stage-1 trajectory
 
     @property
     def object_centric(self) -> bool:
@@ -92,6 +93,8 @@ class ModelSpec:
         label = "DDPM (all steps)" if self.method == "ddpm" else f"DDIM-{self.steps}"
         if self.object_centric:
             label = "object-centric, " + label
+            if not self.keep_trajectory:
+                label += " (completion writes its own trajectory)"
         guided = [f"{stage} w={g:g}" for stage, g in
                   (("ADM", self.adm_guidance), ("AMDM", self.amdm_guidance)) if g != 1.0]
         if self.consistency:
@@ -119,7 +122,7 @@ def _checked(text: str, check, *args):
 def parse_model(text: str) -> ModelSpec:
     """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,consistency=S]
     [,affordance=adm|gt][,adm_candidates=C][,adm_steps=N][,motion_candidates=M]
-    [,trajectory=T,completion=C]`` →
+    [,trajectory=T,completion=C[,keep_trajectory=1|0]]`` →
     :class:`ModelSpec` (the
     ``--model`` syntax). ``adm_steps``: DDIM steps of the ADM stage when they differ from the
     sampler's (as ``jaxmotion generate --adm-steps``).
@@ -133,7 +136,8 @@ def parse_model(text: str) -> ModelSpec:
     row then measures the AMDM alone. ``trajectory`` and ``completion`` (workdirs or files,
     both or neither): the object-centric pipeline samples the row's motions (the sampler and
     ``amdm_guidance`` apply to both of its stages), while the ADM and AMDM still set the
-    crops and find the generate protocol's regions."""
+    crops and find the generate protocol's regions; ``keep_trajectory=0`` lets the completion
+    model write its own trajectory (the authors' way) instead of holding the stage-1 one."""
     name, sep, rest = text.partition("=")
     usage = (f"--model {text!r}: expected NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G]"
              "[,amdm_guidance=G][,consistency=S][,affordance=adm|gt], e.g. "
@@ -161,6 +165,12 @@ def parse_model(text: str) -> ModelSpec:
         key, _, value = opt.partition("=")
         if key in ("trajectory", "completion"):
             objects[key] = value
+            continue
+        if key == "keep_trajectory":
+            if value not in ("0", "1"):
+                raise ValueError(f"--model {text!r}: keep_trajectory must be 1 (the completion "
+                                 f"model holds the stage-1 trajectory) or 0, got {value!r}")
+            objects[key] = value == "1"
             continue
         if key in ("adm_candidates", "adm_steps", "motion_candidates"):
             if not value.isdigit() or int(value) < 1:
@@ -195,7 +205,7 @@ def parse_model(text: str) -> ModelSpec:
             raise ValueError(f"--model {text!r}: {key} must be a number, got {value!r}") from None
         if not guidance[key] > 0:
             raise ValueError(f"--model {text!r}: {key} must be > 0 (1 = no guidance)")
-    if objects and set(objects) != {"trajectory", "completion"}:
+    if objects and not {"trajectory", "completion"} <= set(objects):
         raise ValueError(f"--model {text!r}: the object-centric pipeline needs both "
                          "trajectory=PATH and completion=PATH")
     if objects and (affordance == "gt" or consistency or candidates > 1):
@@ -527,7 +537,8 @@ def evaluate(
                         pooled_text(take_text(emb, idx)), x["betas"], x["mask"],
                         trajectory=amdm_sampler, completion=amdm_sampler,
                         motion_candidates=spec.motion_candidates,
-                        anchor_first=np.array([anchor_is_first(cases[i]["text"]) for i in idx])))
+                        anchor_first=np.array([anchor_is_first(cases[i]["text"]) for i in idx]),
+                        keep_trajectory=spec.keep_trajectory))
                 else:
                     res = jax.device_get(pipe.sample(
                         jax.random.fold_in(key, start), x["points"], x["colors"], take_text(emb, idx),

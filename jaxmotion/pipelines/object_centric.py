@@ -128,7 +128,8 @@ class ObjectCentricPipeline:
 
     def sample_one(self, key, points, normals, target_mask, text, betas, mask, *,
                    trajectory_spec: SamplerSpec = DEFAULT_SPEC,
-                   completion_spec: SamplerSpec = DEFAULT_SPEC) -> dict:
+                   completion_spec: SamplerSpec = DEFAULT_SPEC,
+                   keep_trajectory: bool = True) -> dict:
         """One motion in one crop (jit / vmap it).
 
         Args:
@@ -138,6 +139,9 @@ class ObjectCentricPipeline:
           text: ``[text_dim]`` sentence embedding; betas: ``[10]`` body shape.
           mask: ``[T]`` bool, the frames to generate (a prefix; T is static).
           trajectory_spec, completion_spec: how each stage samples (DDIM steps, guidance).
+          keep_trajectory: the completion model's trajectory features are held to the stage-1
+            trajectory at every step (inpainting, so the pelvis follows the sampled path
+            exactly); False: it writes its own, conditioned on the stage-1 one (the authors').
         Returns:
           ``{"trajectory" [T, 9], "motion" [T, 135], "joints" [T, 22, 3]}`` in metres, crop
           frame; frames outside ``mask`` are not meaningful.
@@ -167,14 +171,30 @@ class ObjectCentricPipeline:
         def comp_denoise(x, t, c):
             return self.completion(x, t, c, deterministic=True)
 
-        y = completion_spec.run(k_comp, comp_denoise, self.comp_schedule,
-                                (1, nt, c_mean.shape[0]), cond, {**cond, **null})
+        shape = (1, nt, c_mean.shape[0])
+        if keep_trajectory:
+            from jaxmotion.diffusion.samplers import ddim_sample, ddpm_sample
+
+            known = jnp.zeros(shape, bool).at[..., :TRAJECTORY_DIM].set(True)
+            values = jnp.zeros(shape, jnp.float32).at[..., :TRAJECTORY_DIM].set(
+                cond["trajectory"])
+            kw = dict(cond=cond, guidance_scale=completion_spec.guidance,
+                      null_cond={**cond, **null}, known_mask=known, known_values=values)
+            if completion_spec.method == "ddpm":
+                y = ddpm_sample(k_comp, comp_denoise, self.comp_schedule, shape, **kw)
+            else:
+                y = ddim_sample(k_comp, comp_denoise, self.comp_schedule, shape,
+                                num_steps=completion_spec.steps, eta=completion_spec.eta, **kw)
+        else:
+            y = completion_spec.run(k_comp, comp_denoise, self.comp_schedule, shape, cond,
+                                    {**cond, **null})
         motion = y[0] * c_std + c_mean
         return {"trajectory": traj, "motion": motion, "joints": motion_to_joints(motion, betas)}
 
     def sample(self, key, points, normals, target, text_emb, betas, mask, *,
                trajectory: SamplerSpec = DEFAULT_SPEC, completion: SamplerSpec = DEFAULT_SPEC,
-               motion_candidates: int = 1, anchor_first=None) -> dict:
+               motion_candidates: int = 1, anchor_first=None,
+               keep_trajectory: bool = True) -> dict:
         """Motions for a batch of crops, the best of ``motion_candidates`` each.
 
         Args:
@@ -183,7 +203,7 @@ class ObjectCentricPipeline:
           trajectory, completion: the two stages' samplers; anchor_first ``[B]`` bool or None
           (as :func:`~jaxmotion.pipelines.affordance.select_motion`, which picks among the
           candidates: never a teleporting one while another is smooth, else the closest to
-          the target at the anchor frame).
+          the target at the anchor frame); keep_trajectory: as :meth:`sample_one`.
         Returns:
           ``{"joints": [B, T, 22, 3]}`` in the crop frame.
         """
@@ -194,7 +214,8 @@ class ObjectCentricPipeline:
 
         def one(k, p, n, t, e, bt, mk):
             return self.sample_one(k, p, n, t, e, bt, mk, trajectory_spec=trajectory,
-                                   completion_spec=completion)["joints"]
+                                   completion_spec=completion,
+                                   keep_trajectory=keep_trajectory)["joints"]
 
         per_candidate = jax.vmap(one, in_axes=(0, None, None, None, None, None, None))
         joints = jax.vmap(per_candidate)(keys, points, normals, target, text_emb, betas, mask)

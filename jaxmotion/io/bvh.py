@@ -1,0 +1,318 @@
+"""BVH motion files (any skeleton) read as the 22 SMPL-X body joints.
+
+Reading
+-------
+The file is parsed fully (:func:`jaxmotion.export.read_bvh`: any number of joints, any
+channel set and order per joint, ``End Site`` leaves), then posed by forward kinematics
+in NumPy, the usual BVH reading:
+
+- a joint's local rotation is the product of its rotation channels **in the listed
+  order**, ``Zrotation Xrotation Yrotation`` → ``R = Rz(z) · Rx(x) · Ry(y)`` (degrees,
+  column vectors; intrinsic);
+- its local translation is its ``OFFSET``, except that position channels **replace** the
+  matching offset components (the root's ``Xposition Yposition Zposition`` are its position
+  in the file's world; on other joints they are their position in the parent's frame, as
+  files with 6 channels on every joint write them);
+- ``world = world(parent) · [R | t]``; joints are at the origin of their frame.
+
+Mapping to SMPL-X
+-----------------
+A joint map ``{smplx_joint_name: bvh_joint_name}`` picks the BVH joint whose position is
+each SMPL-X joint (``joint_map``: ``"auto"``, ``"cmu"``, ``"mixamo"``, ``"smplx"``, a
+dict, or a JSON file holding the dict). Names match exactly, else ignoring case and any
+namespace prefix up to the last ``:`` (``mixamorig:Hips`` = ``Hips``). ``"auto"`` takes
+the first built-in map (smplx, mixamo, cmu) whose every name is in the file.
+
+- ``cmu`` (the CMU/cgspeed 31-joint skeleton): pelvis Hips; hips LeftUpLeg/RightUpLeg;
+  knees LeftLeg/RightLeg; ankles LeftFoot/RightFoot; feet LeftToeBase/RightToeBase;
+  spine1 Spine; spine2 Spine1; neck Neck1 (cgspeed's Neck sits on Spine1, at the chest);
+  head Head; shoulders LeftArm/RightArm; elbows LeftForeArm/RightForeArm; wrists
+  LeftHand/RightHand. spine3 and the collars have no CMU joint.
+- ``mixamo``: Hips, LeftUpLeg, LeftLeg, LeftFoot, LeftToeBase, Spine, Spine1, Spine2
+  (spine3), Neck, Head, LeftShoulder (collar), LeftArm, LeftForeArm, LeftHand, and the
+  Right ones, with or without the ``mixamorig:`` prefix.
+- ``smplx``: jaxmotion's own BVH export (:func:`jaxmotion.export.write_bvh`), names =
+  ``JOINT_NAMES``.
+
+**Joints without a counterpart** (a map may leave out any SMPL-X joint but the pelvis
+and the five chain ends: feet, head, wrists) are placed on the straight line from their
+parent (mapped, or placed before them: joints are filled in SMPL-X index order) to the
+first mapped joint further down their chain (spine → neck → head, collar → shoulder →
+elbow → wrist, hip → knee → ankle → foot), at the fraction of the way that the neutral
+SMPL-X rest skeleton's bone lengths give (spine3 with spine2 and neck mapped: 27 % of the
+way from spine2 to the neck; a collar: 42 % of the way from spine3 to the shoulder).
+
+Units and axes
+--------------
+``up="y"`` (BVH's usual frame, the default) is turned z-up by ``(x, y, z) → (x, −z, y)``
+(+90° about x: a body facing +z in the file faces −y); ``up="z"`` keeps the axes.
+``unit`` is metres per file unit, or ``"auto"``: the ankle–knee–hip–pelvis–spine–neck–head
+chain of the first frame (bone lengths, so the pose does not matter) is compared with the
+neutral SMPL-X body's (1.54 m) for metres, CMU units (0.056444 m), centimetres and
+millimetres, and the closest within a factor of two wins; otherwise pass ``unit``.
+``fps`` resamples (linear interpolation of joint positions); default: the file's rate.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from jaxmotion.export.bvh import BVH, read_bvh
+from jaxmotion.geometry.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, rest_joints_host
+from jaxmotion.io.motion import Motion, MotionFormatError, y_up_to_z_up
+
+__all__ = [
+    "JOINT_MAPS",
+    "REQUIRED_JOINTS",
+    "UNITS",
+    "bvh_world_positions",
+    "load_bvh",
+    "resolve_joint_map",
+]
+
+_SIDES = (("l_", "Left"), ("r_", "Right"))
+_LIMB = {"hip": "UpLeg", "knee": "Leg", "ankle": "Foot", "foot": "ToeBase",
+         "shoulder": "Arm", "elbow": "ForeArm", "wrist": "Hand"}
+_CMU = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "neck": "Neck1", "head": "Head"}
+_MIXAMO = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2",
+           "neck": "Neck", "head": "Head", "l_collar": "LeftShoulder",
+           "r_collar": "RightShoulder"}
+for _p, _side in _SIDES:
+    for _k, _v in _LIMB.items():
+        _CMU[_p + _k] = _MIXAMO[_p + _k] = _side + _v
+
+JOINT_MAPS: dict[str, dict[str, str]] = {
+    "smplx": {n: n for n in JOINT_NAMES},
+    "mixamo": _MIXAMO,
+    "cmu": _CMU,
+}
+REQUIRED_JOINTS = ("pelvis", "l_foot", "r_foot", "head", "l_wrist", "r_wrist")
+UNITS = {"metres": 1.0, "cmu": 0.056444, "centimetres": 0.01, "millimetres": 0.001}
+# The next joint down each limb (the chain a joint without a counterpart is placed on).
+_CHAIN_CHILD = {1: 4, 2: 5, 3: 6, 4: 7, 5: 8, 6: 9, 7: 10, 8: 11, 9: 12, 12: 15, 13: 16,
+                14: 17, 16: 18, 17: 19, 18: 20, 19: 21}
+_HEIGHT_CHAIN = (7, 4, 1, 0, 3, 6, 9, 12, 15)  # l_ankle ... head: unit detection
+
+
+def _matcher(names: tuple[str, ...]):
+    """name -> index in ``names``: exact, else case-insensitive without namespace prefix."""
+    exact = {n: i for i, n in enumerate(names)}
+    loose: dict[str, list[int]] = {}
+    for i, n in enumerate(names):
+        loose.setdefault(n.rpartition(":")[2].lower(), []).append(i)
+
+    def find(name: str) -> int | None:
+        if name in exact:
+            return exact[name]
+        hits = loose.get(name.rpartition(":")[2].lower(), [])
+        return hits[0] if len(hits) == 1 else None
+
+    return find
+
+
+def _user_map(joint_map, where: str) -> tuple[str, dict]:
+    if isinstance(joint_map, Mapping):
+        return "custom", dict(joint_map)
+    if isinstance(joint_map, str) and joint_map in JOINT_MAPS:
+        return joint_map, JOINT_MAPS[joint_map]
+    path = Path(joint_map)
+    if not path.is_file():
+        raise MotionFormatError(
+            f"{where}: joint_map={joint_map!r} is neither a built-in map ({', '.join(JOINT_MAPS)}"
+            ", 'auto') nor an existing JSON file; give a JSON file "
+            '{"pelvis": "Hips", "l_hip": "LeftUpLeg", ...}')
+    try:
+        mapping = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise MotionFormatError(f"{path}: not a readable JSON joint map ({e}); write it as "
+                                '{"pelvis": "Hips", "l_hip": "LeftUpLeg", ...}') from e
+    if not isinstance(mapping, dict) or not all(
+            isinstance(k, str) and isinstance(v, str) for k, v in mapping.items()):
+        raise MotionFormatError(f"{path}: a joint map is a JSON object of SMPL-X joint name -> "
+                                "BVH joint name strings")
+    return str(path), mapping
+
+
+def resolve_joint_map(names, joint_map="auto", *, where: str = "BVH") -> tuple[str, np.ndarray]:
+    """Index of the BVH joint for each SMPL-X joint (−1: no counterpart) and the map's name.
+
+    Args:
+      names: the BVH joint names, file order.
+      joint_map: ``"auto"``, a built-in name (:data:`JOINT_MAPS`), a dict or a JSON file path.
+      where: the file, for error messages.
+    Returns:
+      ``(map name, [22] int array)``.
+    Raises MotionFormatError when a name is unknown, missing from the file, or a required
+    joint (:data:`REQUIRED_JOINTS`) is left out.
+    """
+    names = tuple(names)
+    find = _matcher(names)
+    if joint_map in (None, "auto"):
+        for key, mapping in JOINT_MAPS.items():
+            if all(find(v) is not None for v in mapping.values()):
+                return key, np.array([find(mapping[n]) if n in mapping else -1
+                                      for n in JOINT_NAMES])
+        raise MotionFormatError(
+            f"{where}: the skeleton matches no built-in joint map ({', '.join(JOINT_MAPS)}); its "
+            f"joints are {list(names)}. Pass joint_map= a JSON file or dict "
+            '{"pelvis": "<BVH joint>", "l_hip": ..., ...} naming the BVH joint of each SMPL-X '
+            f"joint ({', '.join(JOINT_NAMES)}; at least {', '.join(REQUIRED_JOINTS)}).")
+    key, mapping = _user_map(joint_map, where)
+    if unknown := sorted(set(mapping) - set(JOINT_NAMES)):
+        raise MotionFormatError(f"{where}: joint map {key!r} has keys {unknown} that are not "
+                                f"SMPL-X body joints; use {', '.join(JOINT_NAMES)}")
+    if missing := [n for n in REQUIRED_JOINTS if n not in mapping]:
+        raise MotionFormatError(f"{where}: joint map {key!r} leaves out {missing}; these chain "
+                                "ends (and the pelvis) need a BVH joint")
+    if absent := {k: v for k, v in mapping.items() if find(v) is None}:
+        raise MotionFormatError(f"{where}: joint map {key!r} names BVH joints not in the file "
+                                f"(or not unique): {absent}; the file has {list(names)}")
+    return key, np.array([find(mapping[n]) if n in mapping else -1 for n in JOINT_NAMES])
+
+
+def bvh_world_positions(bvh: BVH, *, where: str = "BVH") -> np.ndarray:
+    """World position of every BVH joint in every frame: ``[T, J, 3]``, file units and axes.
+
+    See the module docstring for the kinematics. Raises MotionFormatError for unknown
+    channel names or a joint listed before its parent.
+    """
+    t, n = bvh.frames.shape[0], len(bvh.names)
+    rot = np.empty((t, n, 3, 3))
+    pos = np.empty((t, n, 3))
+    col = 0
+    for j in range(n):
+        chans = bvh.channels[j]
+        vals = bvh.frames[:, col:col + len(chans)]
+        col += len(chans)
+        local_t = np.broadcast_to(bvh.offsets[j], (t, 3)).copy()
+        axes, angles = [], []
+        for c, ch in enumerate(chans):
+            kind = ch[1:].lower()
+            if ch[:1].upper() not in "XYZ" or kind not in ("position", "rotation"):
+                raise MotionFormatError(
+                    f"{where}: joint {bvh.names[j]!r} has an unknown channel {ch!r}; BVH "
+                    "channels are X/Y/Z followed by 'position' or 'rotation'")
+            if kind == "position":
+                local_t[:, "XYZ".index(ch[0].upper())] = vals[:, c]
+            else:
+                axes.append(ch[0].upper())
+                angles.append(vals[:, c])
+        local_r = np.broadcast_to(np.eye(3), (t, 3, 3))
+        # scipy takes at most 3 axes per sequence; each group is intrinsic (upper case).
+        for k in range(0, len(axes), 3):
+            group = np.stack(angles[k:k + 3], axis=1)
+            local_r = local_r @ Rotation.from_euler("".join(axes[k:k + 3]), group,
+                                                    degrees=True).as_matrix()
+        p = int(bvh.parents[j])
+        if p < 0:
+            rot[:, j], pos[:, j] = local_r, local_t
+        elif p >= j:
+            raise MotionFormatError(f"{where}: joint {bvh.names[j]!r} comes before its parent")
+        else:
+            rot[:, j] = rot[:, p] @ local_r
+            pos[:, j] = pos[:, p] + np.einsum("tab,tb->ta", rot[:, p], local_t)
+    return pos
+
+
+def _fill_missing(joints: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """[T, 22, 3] with the unmapped joints placed on their chain (module docstring)."""
+    rest = rest_joints_host()
+    bone = np.r_[0.0, np.linalg.norm(rest[1:] - rest[list(PARENTS[1:])], axis=1)]
+    out = joints.copy()
+    for j in range(1, NUM_JOINTS):
+        if index[j] >= 0:
+            continue
+        chain, d = [j], j
+        while index[d] < 0:
+            d = _CHAIN_CHILD[d]  # required chain ends are always mapped, so this stops
+            chain.append(d)
+        frac = bone[j] / sum(bone[c] for c in chain)
+        a = out[:, PARENTS[j]]
+        out[:, j] = a + frac * (out[:, d] - a)
+    return out
+
+
+def _detect_unit(joints0: np.ndarray, where: str) -> float:
+    """Metres per file unit from the first frame's ankle-to-head chain (module docstring)."""
+    rest = rest_joints_host()
+    chain = list(_HEIGHT_CHAIN)
+
+    def length(x):
+        return float(np.linalg.norm(np.diff(x[chain], axis=0), axis=1).sum())
+
+    ref, got = length(rest), length(joints0)
+    if not got > 0:
+        raise MotionFormatError(f"{where}: the skeleton has zero size in the first frame; "
+                                "check the OFFSETs, or pass unit=")
+    name, unit = min(UNITS.items(), key=lambda kv: abs(np.log(got * kv[1] / ref)))
+    if abs(np.log(got * unit / ref)) > np.log(2.0):
+        raise MotionFormatError(
+            f"{where}: cannot tell the length unit: the ankle-to-head chain is {got:.4g} file "
+            f"units, which is no person's size in {', '.join(UNITS)}; pass unit=<metres per "
+            "file unit> (e.g. unit=0.01 for centimetres)")
+    return unit
+
+
+def load_bvh(path, *, up: str = "y", unit="auto", fps: float | None = None,
+             joint_map="auto") -> Motion:
+    """Read a BVH file as a :class:`~jaxmotion.io.Motion` of the 22 SMPL-X body joints.
+
+    Args:
+      path: the ``.bvh`` file.
+      up: ``"y"`` (default) or ``"z"``, the file's up axis (see the module docstring).
+      unit: metres per file unit, or ``"auto"`` (detected from the skeleton's size).
+      fps: resample to this rate (linear interpolation), or None for the file's rate.
+      joint_map: ``"auto"``, ``"cmu"``, ``"mixamo"``, ``"smplx"``, a dict
+        ``{smplx_joint: bvh_joint}`` or a JSON file of one.
+    Returns:
+      joints ``[T, 22, 3]`` metres, z-up; no SMPL-X parameters, no texts. ``info`` records
+      the joint map, the unit and the up axis used.
+    Raises MotionFormatError naming the file and the fix.
+    """
+    path = Path(path)
+    where = str(path)
+    if up not in ("y", "z"):
+        raise MotionFormatError(f"{where}: up must be 'y' or 'z', got {up!r}")
+    if not path.is_file():
+        raise MotionFormatError(f"{where}: no such file")
+    try:
+        bvh = read_bvh(path)
+    except UnicodeDecodeError as e:
+        raise MotionFormatError(f"{where}: not a BVH file (not text: {e}); give a .bvh "
+                                "motion capture file") from e
+    except ValueError as e:
+        raise MotionFormatError(f"{e}; check that the file is a complete BVH (HIERARCHY, "
+                                "MOTION, Frames:, Frame Time:, one line per frame)") from e
+    if bvh.frames.shape[0] < 1:
+        raise MotionFormatError(f"{where}: the BVH has no frames (Frames: 0)")
+    if not (np.isfinite(bvh.frame_time) and bvh.frame_time > 0):
+        raise MotionFormatError(f"{where}: Frame Time must be a positive number of seconds, "
+                                f"got {bvh.frame_time}")
+    if not np.isfinite(bvh.frames).all() or not np.isfinite(bvh.offsets).all():
+        raise MotionFormatError(f"{where}: the file has NaN or inf values")
+    map_name, index = resolve_joint_map(bvh.names, joint_map, where=where)
+    world = bvh_world_positions(bvh, where=where)
+    joints = np.zeros((world.shape[0], NUM_JOINTS, 3))
+    joints[:, index >= 0] = world[:, index[index >= 0]]
+    joints = _fill_missing(joints, index)
+    if unit == "auto":
+        scale = _detect_unit(joints[0], where)
+    else:
+        try:
+            scale = float(unit)
+        except (TypeError, ValueError):
+            scale = float("nan")
+        if not (np.isfinite(scale) and scale > 0):
+            raise MotionFormatError(f"{where}: unit must be 'auto' or metres per file unit "
+                                    f"(> 0), got {unit!r}")
+    joints = joints * scale
+    if up == "y":
+        joints = y_up_to_z_up(joints)
+    motion = Motion(joints=joints, fps=1.0 / bvh.frame_time, source=where,
+                    info={"format": "bvh", "joint_map": map_name, "unit": scale, "up": up})
+    return motion if fps is None else motion.resampled(fps)

@@ -91,6 +91,25 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_data_convert(args: argparse.Namespace) -> int:
+    from jaxmotion.io.convert import convert
+
+    options = {"action": args.action, "max_frames": args.max_frames,
+               "min_frames": args.min_frames, "captions": args.captions, "split": args.split,
+               "fit_iters": args.fit_iters, "floor": not args.keep_height}
+    if args.kind == "bvh":
+        options.update(up=args.up, unit=args.unit, joint_map=args.joint_map)
+    elif (args.up, args.unit, args.joint_map) != ("y", "auto", "auto"):
+        raise ValueError("--up, --unit and --joint-map apply to BVH files only")
+    manifest = convert(args.kind, args.src, args.out, stats=not args.no_stats, **options)
+    src = manifest["sources"]
+    print(f"dataset in {args.out}: samples {manifest['samples']}, sources {src['done']} of "
+          f"{src['total']} ({src['failed']} failed), {manifest['build_seconds_this_run']} s")
+    for e in manifest["errors"][:5]:
+        print(f"warning: skipped {e['error']}", file=sys.stderr)
+    return 0
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from jaxmotion.demo import run_demo
 
@@ -268,6 +287,42 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--preview-count", type=int, default=4, help="samples to preview")
     p.add_argument("--preview-split", default="train", choices=("train", "val", "test"))
     p.set_defaults(func=_cmd_synth)
+
+    data = sub.add_parser("data", help="bring real motion data (HumanML3D, AMASS, BVH) in")
+    data_sub = data.add_subparsers(dest="data_command", metavar="ACTION", required=True)
+    q = data_sub.add_parser(
+        "convert",
+        help="convert a motion dataset to the sample schema (like 'jaxmotion synth' makes)",
+        description="Read HumanML3D (the folder with new_joints/), AMASS (.npz) or BVH files "
+        "(a file or a folder, searched recursively) and write DIR/scenes/floor.npz, "
+        "DIR/samples/{train,val,test}/*.npz, DIR/manifest.json and DIR/stats.npz: clips of at "
+        "most 120 frames at 30 fps on a flat floor, labelled 'walk' unless --action says "
+        "otherwise. Resumable: run the same command again to continue.",
+    )
+    q.add_argument("src", help="the source file or folder")
+    q.add_argument("--from", dest="kind", required=True, choices=("humanml3d", "amass", "bvh"),
+                   help="the source format")
+    q.add_argument("--out", required=True, help="dataset folder")
+    q.add_argument("--action", default="walk", choices=("walk", "sit", "stand_up", "lie"),
+                   help="action label of every sample (default walk; the sources have none)")
+    q.add_argument("--max-frames", type=int, default=120, help="clip length (default 120)")
+    q.add_argument("--min-frames", type=int, default=30,
+                   help="drop clips shorter than this (default 30)")
+    q.add_argument("--captions", choices=("first", "all"), default="first",
+                   help="HumanML3D: the first caption of a clip, or one sample per caption")
+    q.add_argument("--split", choices=("auto", "train", "val", "test"), default="auto",
+                   help="auto: HumanML3D's lists, else a hash of the file path (80/10/10)")
+    q.add_argument("--fit-iters", type=int, default=200,
+                   help="SMPL-X fitting iterations for joint-only sources (0: analytic start)")
+    q.add_argument("--keep-height", action="store_true",
+                   help="keep the source heights (default: feet put on the floor z = 0)")
+    q.add_argument("--up", choices=("y", "z"), default="y", help="BVH: up axis of the files")
+    q.add_argument("--unit", default="auto",
+                   help="BVH: metres per file unit, or auto (default)")
+    q.add_argument("--joint-map", default="auto",
+                   help="BVH: auto, cmu, mixamo, smplx or a JSON file {smplx_joint: bvh_joint}")
+    q.add_argument("--no-stats", action="store_true", help="skip the normalisation statistics")
+    q.set_defaults(func=_cmd_data_convert)
 
     p = sub.add_parser(
         "sample",

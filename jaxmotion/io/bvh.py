@@ -50,7 +50,8 @@ Units and axes
 chain of the first frame (bone lengths, so the pose does not matter) is compared with the
 neutral SMPL-X body's (1.54 m) for metres, CMU units (0.056444 m), centimetres and
 millimetres, and the closest within a factor of two wins; otherwise pass ``unit``.
-``fps`` resamples (linear interpolation of joint positions); default: the file's rate.
+``fps`` resamples (linear interpolation of joint positions); default: the file's rate,
+``1 / Frame Time``, rounded to a whole number when within 0.05 % of one (0.008333 s: 120).
 """
 
 from __future__ import annotations
@@ -117,6 +118,9 @@ def _matcher(names: tuple[str, ...]):
 
 def _user_map(joint_map, where: str) -> tuple[str, dict]:
     if isinstance(joint_map, Mapping):
+        if not all(isinstance(k, str) and isinstance(v, str) for k, v in joint_map.items()):
+            raise MotionFormatError(f"{where}: a joint map maps SMPL-X joint names to BVH joint "
+                                    "names, both strings")
         return "custom", dict(joint_map)
     if isinstance(joint_map, str) and joint_map in JOINT_MAPS:
         return joint_map, JOINT_MAPS[joint_map]
@@ -249,7 +253,7 @@ def _detect_unit(joints0: np.ndarray, where: str) -> float:
     if not got > 0:
         raise MotionFormatError(f"{where}: the skeleton has zero size in the first frame; "
                                 "check the OFFSETs, or pass unit=")
-    name, unit = min(UNITS.items(), key=lambda kv: abs(np.log(got * kv[1] / ref)))
+    unit = min(UNITS.values(), key=lambda u: abs(np.log(got * u / ref)))
     if abs(np.log(got * unit / ref)) > np.log(2.0):
         raise MotionFormatError(
             f"{where}: cannot tell the length unit: the ankle-to-head chain is {got:.4g} file "
@@ -313,6 +317,9 @@ def load_bvh(path, *, up: str = "y", unit="auto", fps: float | None = None,
     joints = joints * scale
     if up == "y":
         joints = y_up_to_z_up(joints)
-    motion = Motion(joints=joints, fps=1.0 / bvh.frame_time, source=where,
+    rate = 1.0 / bvh.frame_time
+    if abs(rate - round(rate)) < 5e-4 * rate:  # "Frame Time: 0.008333" means 120 fps
+        rate = float(round(rate))
+    motion = Motion(joints=joints, fps=rate, source=where,
                     info={"format": "bvh", "joint_map": map_name, "unit": scale, "up": up})
     return motion if fps is None else motion.resampled(fps)

@@ -123,7 +123,7 @@ class Motion:
         params = (self.global_orient, self.body_pose, self.transl)
         if any(p is None for p in params) and not all(p is None for p in params):
             raise ValueError("Motion: give global_orient, body_pose and transl together, or none")
-        sets = dict(joints=_frozen("joints", j, (t, NUM_JOINTS, 3)), fps=fps)
+        sets = {"joints": _frozen("joints", j, (t, NUM_JOINTS, 3)), "fps": fps}
         if self.global_orient is not None:
             sets.update(global_orient=_frozen("global_orient", self.global_orient, (t, 3)),
                         body_pose=_frozen("body_pose", self.body_pose, (t, NUM_JOINTS - 1, 3)),
@@ -175,7 +175,7 @@ class Motion:
         cut = {k: getattr(self, k)[start:stop] for k in ("joints", "global_orient", "body_pose",
                                                         "transl") if getattr(self, k) is not None}
         t0, t1, eps = start / self.fps, (stop - 1) / self.fps, 0.5 / self.fps
-        keep = [(s, (a, b)) for s, (a, b) in zip(self.texts, self.text_spans)
+        keep = [(s, (a, b)) for s, (a, b) in zip(self.texts, self.text_spans, strict=True)
                 if a <= t0 + eps and b >= t1 - eps]
         return dataclasses.replace(
             self, **cut, texts=tuple(s for s, _ in keep),

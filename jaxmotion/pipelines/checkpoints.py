@@ -14,8 +14,7 @@ from pathlib import Path
 
 from jaxmotion.errors import GenerateError
 
-__all__ = ["OBJECT_CENTRIC_FILES", "TEXT_ADM", "load_object_pipeline",
-           "resolve_object_checkpoints", "adm_text_tokens", "adm_view", "default_checkpoints", "load_pipeline",
+__all__ = ["OBJECT_CENTRIC_FILES", "TEXT_ADM", "resolve_object_checkpoints", "adm_text_tokens", "adm_view", "default_checkpoints", "load_pipeline",
            "resolve_checkpoints", "text_adm_for", "weights_config"]
 
 _ASSETS = Path(__file__).resolve().parent.parent / "assets"
@@ -126,16 +125,3 @@ def resolve_object_checkpoints(checkpoints) -> tuple[Path, Path]:
         if got != task:
             raise GenerateError(f"{p} is a {got!r} checkpoint, not a {task} one")
     return paths[0], paths[1]
-
-
-@functools.lru_cache(maxsize=4)
-def load_object_pipeline(trajectory: str, completion: str):
-    """The :class:`~jaxmotion.pipelines.object_centric.ObjectCentricPipeline` of two files
-    (kept for the process)."""
-    from jaxmotion.pipelines.object_centric import ObjectCentricPipeline
-
-    try:
-        return ObjectCentricPipeline.from_files(trajectory, completion)
-    except (KeyError, ValueError) as e:
-        raise GenerateError(f"checkpoints {trajectory} and {completion} do not load together: "
-                            f"{e}") from e

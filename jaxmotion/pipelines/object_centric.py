@@ -20,6 +20,7 @@ normalisation statistics of its features (``stats/feature_mean``, ``stats/featur
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,6 +37,7 @@ __all__ = [
     "TRAJECTORY_HALF_SIZE",
     "ObjectCentricPipeline",
     "crop_sensors",
+    "load_object_pipeline",
     "sample_in_room",
     "trajectory_sensors",
 ]
@@ -224,6 +226,19 @@ class ObjectCentricPipeline:
         return {"joints": select_motion(joints, points, target, mask, anchor_first)}
 
 
+@functools.lru_cache(maxsize=4)
+def load_object_pipeline(trajectory: str, completion: str) -> ObjectCentricPipeline:
+    """The :class:`ObjectCentricPipeline` of two weights files, kept for the process;
+    :class:`~jaxmotion.errors.GenerateError` when they do not load together."""
+    from jaxmotion.errors import GenerateError
+
+    try:
+        return ObjectCentricPipeline.from_files(trajectory, completion)
+    except (KeyError, ValueError) as e:
+        raise GenerateError(f"checkpoints {trajectory} and {completion} do not load together: "
+                            f"{e}") from e
+
+
 def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts, files, root,
                    aot_dir, versions):
     """``generate``'s synthesis stage with the object-centric pipeline: the K motions in the
@@ -247,7 +262,6 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     from jaxmotion.errors import GenerateError
     from jaxmotion.models.adm import pooled_text
     from jaxmotion.models.weights import read_config
-    from jaxmotion.pipelines.checkpoints import load_object_pipeline
 
     run_cfg = read_config(files[1])
     spec, frames = crop_spec_from_config(run_cfg), int(run_cfg["max_frames"])

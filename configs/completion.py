@@ -29,13 +29,14 @@ class CompletionTrainConfig(ObjectCentricTrainConfig):
     steps: int = 6000
     batch_size: int = 16
     model: ObjectCentricConfig = dataclasses.field(
-        default_factory=lambda: ObjectCentricConfig(kind=KIND, traj_sensor=False))
+        default_factory=lambda: ObjectCentricConfig(kind=KIND, action_token=True,
+                                                    traj_sensor=False))
 
 
 def _model_preset(name: str) -> dict[str, Any]:
     """The model sizes of preset ``name`` (its ``kind`` stays this file's)."""
     return {k: v for k, v in preset_overrides(ObjectCentricConfig, name, "model.").items()
-            if k not in ("model.kind", "model.traj_sensor")}
+            if k not in ("model.kind", "model.traj_sensor", "model.action_token")}
 
 
 PRESETS: dict[str, dict[str, Any]] = {

@@ -377,11 +377,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="strength in [0, 1] of affordance-consistency guidance: the motion is "
                    "steered to match the predicted affordance map (default: the tuned value; "
                    "0 = off)")
-    p.add_argument("--grounding", choices=("auto", "adm"), default=None,
+    p.add_argument("--grounding", choices=("auto", "adm", "llm"), default=None,
                    help="auto (default): a relation in the text ('the chair closest to the "
                    "door') narrows the named objects by the room's geometry before the ADM "
                    "chooses (needs an object table: synthetic rooms, labelled scans); adm: the "
-                   "ADM's map alone")
+                   "ADM's map alone; llm: a language model at JAXMOTION_LLM_URL (any "
+                   "OpenAI-compatible server; JAXMOTION_LLM_MODEL, JAXMOTION_LLM_API_KEY) "
+                   "chooses the target in two prompts, saved as grounding_llm.json")
     p.add_argument("--adm-candidates", type=int, default=None, metavar="C",
                    help="once the target object is known (--object, or found from the text), "
                    "draw C affordance maps per sample and keep the one that lights it most "

@@ -133,7 +133,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     from jaxmotion._jax_setup import enable_compilation_cache
     from jaxmotion.compiled import digest
     from jaxmotion.diffusion.samplers import SamplerSpec
-    from jaxmotion.grounding import AdmChooser, find_object, find_region, read_instruction
+    from jaxmotion.grounding import AdmChooser, explain, find_object, find_region, read_instruction
     from jaxmotion.grounding.region import centre_on_object
     from jaxmotion.pipelines.checkpoints import adm_text_tokens
     from jaxmotion.scene.checks import scene_warnings
@@ -157,7 +157,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     for message in scene_warnings(room):
         warnings.warn(message, UserWarning, stacklevel=3)
     target_obj = None if opts.object_id is None else find_object(room, opts.object_id)
-    instruction = read_instruction(text)
+    instruction = read_instruction(text, similarity=xla_cache / "text-embeddings")
     emb = embed_one(text, xla_cache / "text-embeddings", adm_text_tokens(models.adm_config))
     # the root key's two stage keys (region / room view, then sampling) are split inside the
     # compiled programs, or eagerly only on the paths that need the first: an eager split is
@@ -195,6 +195,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
                                           adm=chooser)
         if not models.room_view:
             lap("region")
+    understood = explain(room, instruction, chosen, how, opts, echo=progress)  # warns, too
 
     if models.objects is not None:  # the object-centric pipeline: sensors around the target
         from jaxmotion.pipelines.object_centric import sample_in_room
@@ -203,7 +204,8 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
             raise GenerateError("the object-centric pipeline needs a target object, and the "
                                 "text names none of this room's: name one, or pass object_id")
         joints, crop = sample_in_room(room, centre, chosen, instruction.anchor_first, emb, opts,
-                                      models.objects, root, aot_dir, versions)
+                                      models.objects, root, aot_dir, versions,
+                                      instruction.action)
         aff, excluded, n_cand, n_mot = (np.zeros((k, len(crop[0]), 6), np.float32), (), 0,
                                         opts.motion_candidates)
     else:
@@ -226,7 +228,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         object_id=opts.object_id, target_id=chosen, seed=opts.seed, steps=opts.steps,
         guidance=(adm_w, amdm_w), consistency=opts.consistency, timings=times, grounding=how,
         excluded=tuple(excluded), adm_candidates=n_cand, adm_steps=opts.adm_steps,
-        motion_candidates=n_mot,
+        motion_candidates=n_mot, understanding=understood,
         view_xyz=None if view_index is None else room.xyz[view_index].astype(np.float32),
         view_affordance=None if view_maps is None else np.asarray(view_maps, np.float32),
     )
@@ -254,7 +256,7 @@ def _synthesize(room, centre, chosen, anchor_first: bool, emb, opts: GenerateOpt
     # once the target is known (given, or found with the scene graph's help), the other
     # objects of its class are left out of the ADM's map
     excluded = (same_class_others(object_table(room), chosen)
-                if opts.object_id is not None or opts.grounding == "auto" else [])
+                if opts.object_id is not None or opts.grounding != "adm" else [])
     n_cand = opts.adm_candidates if chosen is not None and not room_view else 1
     n_mot = opts.motion_candidates if chosen is not None else 1
     tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))  # noqa: E731

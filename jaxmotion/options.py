@@ -47,7 +47,9 @@ DEFAULT_MOTION_CANDIDATES: int = 4
 MAX_SAMPLES = 256
 MAX_ADM_CANDIDATES = 32
 MAX_MOTION_CANDIDATES = 16
-GROUNDINGS = ("auto", "adm")
+#: How the target is found without ``object_id``: ``auto`` (words, the scene graph, then the
+#: ADM), ``adm`` (the ADM among the named class), ``llm`` (a language model, two prompts).
+GROUNDINGS = ("auto", "adm", "llm")
 #: The generation pipelines (``pipeline`` option); the first is the default.
 PIPELINES = ("affordance", "object-centric")
 
@@ -107,7 +109,9 @@ class GenerateOptions:
       guidance: classifier-free guidance ``(ADM, AMDM)``; one number sets both (1 = none).
       consistency: strength in [0, 1] of affordance-consistency guidance (0 = off).
       grounding: ``auto`` (a relation in the text narrows the named objects by the scene's
-        geometry before the ADM chooses) or ``adm`` (the ADM alone).
+        geometry before the ADM chooses), ``adm`` (the ADM alone) or ``llm`` (a language model
+        at ``JAXMOTION_LLM_URL`` chooses the target in two prompts,
+        :mod:`jaxmotion.grounding.llm`; prompts and answers saved as ``grounding_llm.json``).
       adm_candidates: once the target is known, the ADM draws this many maps per sample and
         the one lighting the target most is kept (1..32).
       motion_candidates: once the target is known, the AMDM draws this many motions per sample
@@ -158,7 +162,8 @@ class GenerateOptions:
         put("guidance", check_guidance(self.guidance))
         put("consistency", check_consistency(self.consistency))
         if self.grounding not in GROUNDINGS:
-            raise GenerateError(f"grounding must be 'auto' or 'adm', got {self.grounding!r}")
+            raise GenerateError(f"grounding must be one of {', '.join(GROUNDINGS)}, got "
+                                f"{self.grounding!r}")
         for name, default in (("adm_candidates", DEFAULT_ADM_CANDIDATES),
                               ("motion_candidates", DEFAULT_MOTION_CANDIDATES)):
             value = getattr(self, name)

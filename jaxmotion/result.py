@@ -39,7 +39,13 @@ class Generation:
         the one chosen from the text; None when the region came from tiling the room).
       grounding: how the region was chosen: ``object_id``, ``scene graph`` (the text's
         relation singled the object out), ``class`` (the only object of the named class),
-        ``adm`` (the ADM's map chose among candidates) or ``adm peak`` (no candidates).
+        ``seat at`` (the seat at the named desk / table), ``named id`` ("chair 3"),
+        ``related`` / ``action`` / ``similarity`` (a stand-in for a class the room lacks,
+        the only object the action takes, the class nearest the words by meaning), ``adm``
+        (the ADM's map chose among candidates) or ``adm peak`` (no candidates).
+      understanding: what was understood from the text, said plainly: the action, the
+        target and how it was chosen, warnings
+        (:class:`~jaxmotion.grounding.report.Understanding`), or None.
       excluded: ids of the objects the ADM's map was kept off (the other objects of the
         target's class, once the target was known).
       seed, steps: as passed; adm_steps: the ADM stage's DDIM steps used; guidance: the
@@ -78,6 +84,7 @@ class Generation:
     adm_candidates: int = 1
     adm_steps: int = 0
     motion_candidates: int = 1
+    understanding: Any = None
 
     @property
     def num_samples(self) -> int:

@@ -238,10 +238,12 @@ def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
     out = tmp_path / "ok"
     assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
                  "--out", str(out), "--checkpoints", *ckpt]) == 0
-    stdout = capsys.readouterr().out.strip().splitlines()
+    captured = capsys.readouterr()
+    stdout = captured.out.strip().splitlines()
     assert len(stdout) == 1  # the JSON summary alone (progress goes to stderr): `| jq` works
     line = json.loads(stdout[0])
     assert line["samples"] == 1 and line["frames"] == 120
+    assert line["action"] == "sit" and "action: sit (from the words 'sit')" in captured.err
     assert (out / "motion.bvh").is_file() and not (out / "motion.gif").exists()
     with np.load(out / "motion.npz") as f:
         from jaxmotion.options import DEFAULT_GUIDANCE
@@ -283,6 +285,25 @@ def test_text_naming_no_object_tiles_the_room(ckpt):
     r = jaxmotion.generate("demo", "dance around for a while", checkpoints=ckpt, fit=False,
                            **FAST)
     assert r.target_id is None and r.joints.shape == (1, 120, 22, 3)
+
+
+def test_what_was_understood_is_said(result, ckpt):
+    """The result and its summary say the action and how the target was chosen; several
+    objects that fit, or an action the models do not know, are warnings; an action the room
+    has nothing for is a clear error before any model runs."""
+    line = json.loads(jaxmotion.export.summary(result))
+    assert line["action"] == "sit" and line["target"] == f"chair {result.target_id}"
+    assert any(n.startswith(f"target: chair {result.target_id}") for n in line["notes"])
+    assert line["warnings"] == [] and result.understanding.how == result.grounding
+    stools = [o["id"] for o in jaxmotion.scene.demo.demo_scene().objects
+              if o["category"] == "stool"]
+    with pytest.warns(UserWarning, match="2 objects fit the text") as rec:
+        r = jaxmotion.generate("demo", "Could you park yourself on the stool?",
+                               checkpoints=ckpt, fit=False, **FAST)
+    assert r.target_id in stools and r.understanding.action == "sit"
+    assert "--object ID" in str(rec[0].message)
+    with pytest.raises(GenerateError, match="no beds or sofas to lie on"):
+        jaxmotion.generate("demo", "lie down on the bed", checkpoints=ckpt, fit=False, **FAST)
 
 
 def test_text_embedding_cache(tmp_path):

@@ -226,7 +226,7 @@ def test_pipeline_samples_motions_with_exact_bones(data, runs):
                                             runs["completion"][1].workdir / "model.safetensors")
     ds = Dataset(data / "data", "test", CropSpec(num_points=256, rotate=False))
     b = ds.host_batch([0, 1], np.random.default_rng(0))
-    spec = SamplerSpec("ddim", 4)
+    spec = SamplerSpec("ddim", 4, guidance=2.0)  # classifier-free guidance on the text
     fn = jax.jit(jax.vmap(lambda k, p, n, m, tx, bt, mk: pipe.sample_one(
         k, p, n, m, tx, bt, mk, trajectory_spec=spec, completion_spec=spec)))
     keys = jax.random.split(jax.random.key(3), 2)

@@ -61,7 +61,7 @@ def case_regions(data_dir, split: str, pipe, *, num_cases: int | None = None,
     from jaxmotion.text import load_text_encoder
 
     if grounding not in GROUNDINGS:
-        raise ValueError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
+        raise ValueError(f"grounding must be one of {', '.join(GROUNDINGS)}, got {grounding!r}")
     files = sorted((Path(data_dir) / "samples" / split).glob("*.npz"))[:num_cases]
     if not files:
         raise FileNotFoundError(f"{Path(data_dir) / 'samples' / split}: no samples; build a "

@@ -450,7 +450,7 @@ def evaluate(
         raise ValueError(f"protocol must be 'paper' (crops around the dataset's motion) or "
                          f"'generate' (crops where jaxmotion generate puts them), got {protocol!r}")
     if grounding not in GROUNDINGS:
-        raise ValueError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
+        raise ValueError(f"grounding must be one of {', '.join(GROUNDINGS)}, got {grounding!r}")
     if evaluator is not None and isinstance(evaluator, (str, Path)):
         from jaxmotion.eval.evaluator import load_evaluator
 
@@ -498,7 +498,8 @@ def evaluate(
         if spec.object_centric:
             from jaxmotion.models.adm import pooled_text
             from jaxmotion.models.weights import weights_path
-            from jaxmotion.pipelines.object_centric import ObjectCentricPipeline
+            from jaxmotion.grounding import read_instruction
+            from jaxmotion.pipelines.object_centric import ObjectCentricPipeline, action_index
 
             objects = ObjectCentricPipeline.from_files(weights_path(spec.trajectory),
                                                        weights_path(spec.completion))
@@ -538,7 +539,9 @@ def evaluate(
                         trajectory=amdm_sampler, completion=amdm_sampler,
                         motion_candidates=spec.motion_candidates,
                         anchor_first=np.array([anchor_is_first(cases[i]["text"]) for i in idx]),
-                        keep_trajectory=spec.keep_trajectory))
+                        keep_trajectory=spec.keep_trajectory,
+                        action=np.array([action_index(read_instruction(cases[i]["text"]).action)
+                                         for i in idx])))
                 else:
                     res = jax.device_get(pipe.sample(
                         jax.random.fold_in(key, start), x["points"], x["colors"], take_text(emb, idx),

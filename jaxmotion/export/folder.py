@@ -2,7 +2,8 @@
 
 :func:`write_generation` writes ``motion.npz`` (every field of a
 :class:`~jaxmotion.result.Generation`), ``motion.bvh``, ``motion.glb``, the video and
-``viewer.html``; :func:`check_output_folder` tells before any work whether a folder can take
+``viewer.html`` (and ``grounding_llm.json``, the language model's prompts and answers, with
+``--grounding llm``); :func:`check_output_folder` tells before any work whether a folder can take
 them; :func:`summary` is the JSON line the command line prints.
 """
 
@@ -81,6 +82,9 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
                  **({} if res.view_xyz is None else {
                      "view_xyz": res.view_xyz.astype(np.float32),
                      "view_affordance": res.view_affordance.astype(np.float16)}))
+    llm = getattr(res.understanding, "llm", None)
+    if llm is not None:  # --grounding llm: the prompts and answers that chose the target
+        (tmp / "grounding_llm.json").write_text(json.dumps(llm, indent=1))
     p = res.smplx
     i = int(bvh_sample)
     export.write_bvh(tmp / "motion.bvh", p["global_orient"][i], p["body_pose"][i],
@@ -151,9 +155,12 @@ def _subsample(xyz, rgb, n: int, seed: int):
 
 
 def summary(res) -> str:
-    """A JSON line describing a result (for the command line)."""
+    """A JSON line describing a result (for the command line): with what was understood from
+    the text (``action``, ``action_from``, ``target``, ``notes``, ``warnings``;
+    :meth:`jaxmotion.grounding.report.Understanding.as_json`) when the result has it."""
+    understood = res.understanding.as_json() if res.understanding is not None else {}
     return json.dumps({"text": res.text, "samples": res.num_samples, "frames": int(res.mask.sum()),
-                       "target_id": res.target_id, "grounding": res.grounding,
+                       **understood, "target_id": res.target_id, "grounding": res.grounding,
                        "excluded": list(res.excluded), "adm_candidates": res.adm_candidates,
                        "adm_steps": res.adm_steps,
                        "motion_candidates": res.motion_candidates, "steps": res.steps,

@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from jaxmotion.grounding.target import candidate_objects
+from jaxmotion.errors import GenerateError
+from jaxmotion.grounding.target import ground_candidates
 
 __all__ = ["AdmChooser", "centre_on_object", "choose_region", "clamp_centre", "find_region",
            "lit", "region_from_view", "room_view_maps", "tile_centres"]
@@ -105,11 +106,21 @@ def find_region(room, text, grounding: str, spec, *, view=None,
     object id or None, how)``; ``text``: the instruction or its
     :class:`~jaxmotion.grounding.target.Instruction`. ``view``: a room-view ADM's
     ``(view_index, maps)`` (:func:`room_view_maps`); else ``adm`` runs a crop-view ADM (:func:`choose_region`).
-    ``how`` (:attr:`jaxmotion.result.Generation.grounding`): ``scene graph`` or ``class``
-    when the text alone singled the object out, ``adm`` when the ADM chose among several,
-    ``adm peak`` when the text names no object of the room."""
+    ``how`` (:attr:`jaxmotion.result.Generation.grounding`): how the text alone singled the
+    object out (:attr:`~jaxmotion.grounding.target.Candidates.how`: ``scene graph``,
+    ``class``, ``seat at``, ...), ``adm`` when the ADM chose among several, ``adm peak``
+    when the text names no object of the room. :class:`~jaxmotion.errors.GenerateError` when
+    the action needs an object the room does not have ("lie down" with no bed or sofa)."""
     lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
-    candidates, how = candidate_objects(room, text, grounding)
+    if grounding == "llm":  # the language model's choice, asked once per instruction
+        from jaxmotion.grounding.llm import llm_candidates
+
+        found = llm_candidates(room, text)
+    else:
+        found = ground_candidates(room, text, grounding)
+    if found.error:  # "lie down" in a room with nothing to lie on
+        raise GenerateError(found.error)
+    candidates, how = found.objects, found.how
     if view is not None:
         centre, chosen = region_from_view(room, candidates, *view, spec, lo, hi)
     else:

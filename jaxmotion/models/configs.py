@@ -314,6 +314,9 @@ class ObjectCentricConfig(Presets):
         norm_first: the transformer decoder (its memory is the timestep token).
       temporal_basis: 0, or K > 0: the x0 estimate is the least-squares fit of the network's
         per-frame output by the first K cosines of its valid frames (as ``AMDMConfig``).
+      action_token: the text token also carries a learned embedding of the action the
+        instruction asks for (walk / sit / stand up / lie, or unknown), as the grounding stage
+        reads it (``cond["action"]``); dropped with the text.
     """
 
     kind: Literal["trajectory", "completion"] = "trajectory"
@@ -330,6 +333,7 @@ class ObjectCentricConfig(Presets):
     dropout: float = 0.1
     norm_first: bool = False
     temporal_basis: int = 0
+    action_token: bool = False
 
     _PRESETS = {
         "tiny": lambda: dict(sensor_res=4, sensor_hidden=16, time_dim=16, d_model=16,

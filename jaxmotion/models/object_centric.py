@@ -11,6 +11,9 @@ model, 135 for the completion model), with
   target sensors (:mod:`jaxmotion.geometry.sensors`);
 - completion only: ``cond["trajectory"] [B, T, 9]`` (the stage-1 trajectory, normalised as the
   first 9 features) and, with ``traj_sensor``, ``cond["traj_sensor"] [B, T, r, r, r, 7]``;
+- with ``action_token``: ``cond["action"] [B]`` int, the action the instruction asks for
+  (:data:`ACTION_CLASSES`: index into walk, sit, stand_up, lie; 4 = unknown; default unknown),
+  whose learned embedding is added to the text token;
 - optional ``cond["drop_text"]``, ``cond["drop_scene"] [B]`` (bool / 0-1): condition dropout
   for classifier-free guidance, done inside: the text embedding, or both scene sensors' tokens,
   of those rows are zeroed (the authors have none; the issue asks for it).
@@ -38,9 +41,12 @@ from jaxmotion.models.layers import (
     sinusoidal_embedding,
 )
 
-__all__ = ["SENSOR_CHANNELS", "ObjectCentricDenoiser"]
+__all__ = ["ACTION_CLASSES", "SENSOR_CHANNELS", "UNKNOWN_ACTION", "ObjectCentricDenoiser"]
 
 SENSOR_CHANNELS = 7
+#: The actions an ``action_token`` model tells apart (the dataset's ``ACTIONS``), then unknown.
+ACTION_CLASSES = ("walk", "sit", "stand_up", "lie", "unknown")
+UNKNOWN_ACTION = len(ACTION_CLASSES) - 1
 N_COND = 4  # shape, text, environment sensor, target sensor
 
 
@@ -80,6 +86,9 @@ class ObjectCentricDenoiser(nnx.Module):
         self.time_embed = TimestepEmbedder(cfg.time_dim, d, rngs=rngs)
         self.betas_proj = nnx.Linear(cfg.betas_dim, d, rngs=rngs)
         self.text_proj = nnx.Linear(cfg.text_dim, d, rngs=rngs)
+        if cfg.action_token:  # starts at 0: switching it on keeps a trained model's function
+            self.action_embed = nnx.Embed(len(ACTION_CLASSES), d,
+                                          embedding_init=nnx.initializers.zeros, rngs=rngs)
         self.env_mlp = _SensorMLP(flat, cfg.sensor_hidden, d, rngs=rngs)
         self.target_mlp = _SensorMLP(flat, cfg.sensor_hidden, d, rngs=rngs)
         if cfg.kind == "completion":
@@ -107,10 +116,17 @@ class ObjectCentricDenoiser(nnx.Module):
         mask = cond.get("mask")
         mask = jnp.ones((b, nt), bool) if mask is None else jnp.asarray(mask, bool)
         res = cfg.sensor_res
-        keep_scene = _drop(cond, "drop_scene", b)
+        keep_scene, keep_text = _drop(cond, "drop_scene", b), _drop(cond, "drop_text", b)
+        text_tok = self.text_proj(jnp.asarray(cond["text"], jnp.float32) * keep_text)
+        if cfg.action_token:
+            action = cond.get("action")
+            action = (jnp.full((b,), UNKNOWN_ACTION, jnp.int32) if action is None
+                      else jnp.broadcast_to(jnp.asarray(action, jnp.int32), (b,)))
+            action = jnp.where(keep_text[:, 0] > 0, action, UNKNOWN_ACTION)
+            text_tok = text_tok + self.action_embed(action)
         tokens = [
             self.betas_proj(jnp.asarray(cond["betas"], jnp.float32)),
-            self.text_proj(jnp.asarray(cond["text"], jnp.float32) * _drop(cond, "drop_text", b)),
+            text_tok,
             self.env_mlp(_flat_sensor(cond["env_sensor"], res) * keep_scene),
             self.target_mlp(_flat_sensor(cond["target_sensor"], res) * keep_scene),
         ]

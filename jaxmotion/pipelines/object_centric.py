@@ -30,12 +30,14 @@ from flax import nnx
 
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
+from jaxmotion.models.object_centric import ACTION_CLASSES, UNKNOWN_ACTION
 from jaxmotion.motion.representation import TRAJECTORY_DIM, motion_to_joints, trajectory_frames
 
 __all__ = [
     "ENVIRONMENT_HALF_SIZE",
     "TRAJECTORY_HALF_SIZE",
     "ObjectCentricPipeline",
+    "action_index",
     "crop_sensors",
     "load_object_pipeline",
     "sample_in_room",
@@ -131,7 +133,7 @@ class ObjectCentricPipeline:
     def sample_one(self, key, points, normals, target_mask, text, betas, mask, *,
                    trajectory_spec: SamplerSpec = DEFAULT_SPEC,
                    completion_spec: SamplerSpec = DEFAULT_SPEC,
-                   keep_trajectory: bool = True) -> dict:
+                   keep_trajectory: bool = True, action=None) -> dict:
         """One motion in one crop (jit / vmap it).
 
         Args:
@@ -144,6 +146,9 @@ class ObjectCentricPipeline:
           keep_trajectory: the completion model's trajectory features are held to the stage-1
             trajectory at every step (inpainting, so the pelvis follows the sampled path
             exactly); False: it writes its own, conditioned on the stage-1 one (the authors').
+          action: the action the instruction asks for, an index into
+            :data:`~jaxmotion.models.object_centric.ACTION_CLASSES` (None: unknown); read by
+            models with ``action_token``, ignored by others.
         Returns:
           ``{"trajectory" [T, 9], "motion" [T, 135], "joints" [T, 22, 3]}`` in metres, crop
           frame; frames outside ``mask`` are not meaningful.
@@ -152,8 +157,11 @@ class ObjectCentricPipeline:
         k_traj, k_comp = jax.random.split(key)
         env, tgt = crop_sensors(points, normals, target_mask, res)
         base = {"text": text[None], "betas": betas[None], "env_sensor": env[None],
-                "target_sensor": tgt[None], "mask": mask[None]}
-        null = {"drop_text": jnp.ones((1,), bool), "drop_scene": jnp.zeros((1,), bool)}
+                "target_sensor": tgt[None], "mask": mask[None],
+                "drop_text": jnp.zeros((1,), bool), "drop_scene": jnp.zeros((1,), bool),
+                "action": jnp.full((1,), UNKNOWN_ACTION if action is None else action,
+                                   jnp.int32)}
+        null = {"drop_text": jnp.ones((1,), bool)}  # guidance on the text
         t_mean, t_std = self.traj_stats
         nt = mask.shape[0]
 
@@ -196,7 +204,7 @@ class ObjectCentricPipeline:
     def sample(self, key, points, normals, target, text_emb, betas, mask, *,
                trajectory: SamplerSpec = DEFAULT_SPEC, completion: SamplerSpec = DEFAULT_SPEC,
                motion_candidates: int = 1, anchor_first=None,
-               keep_trajectory: bool = True) -> dict:
+               keep_trajectory: bool = True, action=None) -> dict:
         """Motions for a batch of crops, the best of ``motion_candidates`` each.
 
         Args:
@@ -205,7 +213,8 @@ class ObjectCentricPipeline:
           trajectory, completion: the two stages' samplers; anchor_first ``[B]`` bool or None
           (as :func:`~jaxmotion.pipelines.affordance.select_motion`, which picks among the
           candidates: never a teleporting one while another is smooth, else the closest to
-          the target at the anchor frame); keep_trajectory: as :meth:`sample_one`.
+          the target at the anchor frame); keep_trajectory: as :meth:`sample_one`; action:
+          ``[B]`` int indices into ``ACTION_CLASSES`` (None: unknown).
         Returns:
           ``{"joints": [B, T, 22, 3]}`` in the crop frame.
         """
@@ -214,13 +223,17 @@ class ObjectCentricPipeline:
         b, m = points.shape[0], int(motion_candidates)
         keys = jax.random.split(key, b * m).reshape(b, m)
 
-        def one(k, p, n, t, e, bt, mk):
-            return self.sample_one(k, p, n, t, e, bt, mk, trajectory_spec=trajectory,
-                                   completion_spec=completion,
-                                   keep_trajectory=keep_trajectory)["joints"]
+        if action is None:
+            action = jnp.full((b,), UNKNOWN_ACTION, jnp.int32)
 
-        per_candidate = jax.vmap(one, in_axes=(0, None, None, None, None, None, None))
-        joints = jax.vmap(per_candidate)(keys, points, normals, target, text_emb, betas, mask)
+        def one(k, p, n, t, e, bt, mk, a):
+            return self.sample_one(k, p, n, t, e, bt, mk, trajectory_spec=trajectory,
+                                   completion_spec=completion, keep_trajectory=keep_trajectory,
+                                   action=a)["joints"]
+
+        per_candidate = jax.vmap(one, in_axes=(0, None, None, None, None, None, None, None))
+        joints = jax.vmap(per_candidate)(keys, points, normals, target, text_emb, betas, mask,
+                                         jnp.asarray(action, jnp.int32))
         if m == 1:
             return {"joints": joints[:, 0]}
         return {"joints": select_motion(joints, points, target, mask, anchor_first)}
@@ -239,8 +252,14 @@ def load_object_pipeline(trajectory: str, completion: str) -> ObjectCentricPipel
                             f"{e}") from e
 
 
+def action_index(action) -> int:
+    """The index of an action name (``Instruction.action``) in :data:`ACTION_CLASSES`; None or
+    an unknown name gives the unknown class."""
+    return ACTION_CLASSES.index(action) if action in ACTION_CLASSES[:-1] else UNKNOWN_ACTION
+
+
 def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts, files, root,
-                   aot_dir, versions):
+                   aot_dir, versions, action=None):
     """``generate``'s synthesis stage with the object-centric pipeline: the K motions in the
     scene's frame for the crop square at ``centre`` around the target ``chosen``.
 
@@ -252,6 +271,7 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
         motion_candidates); files: ``(trajectory, completion)`` weights files.
       root: the run's PRNG key (its second split samples, as the affordance pipeline's);
       aot_dir, versions: the compiled-program cache (:func:`jaxmotion.compiled.cached_call`).
+      action: the action the instruction asks for (``Instruction.action``; None: unknown).
     Returns:
       ``(joints [K, T, 22, 3], (crop point indices, rotation, shift))``.
     """
@@ -275,20 +295,21 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
         raise GenerateError(f"object {chosen} has no point in the {spec.size} m square the "
                             "object-centric models see; is it an object of the room?")
     k = opts.samples
-    tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))  # noqa: E731
+    tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))
     normals = (np.asarray(room.normal[pick], np.float32) @ rot.T).astype(np.float32)
     args = (np.asarray(jax.random.key_data(root)), tile(pts), tile(normals), tile(on_target),
             tile(np.asarray(pooled_text(text_emb), np.float32)[0]),
-            np.zeros((k, 10), np.float32), np.ones((k, frames), bool), np.full(k, anchor_first))
+            np.zeros((k, 10), np.float32), np.ones((k, frames), bool), np.full(k, anchor_first),
+            np.full(k, action_index(action), np.int32))
     stage = SamplerSpec("ddim", opts.steps, guidance=opts.guidance[1])
     n_mot = opts.motion_candidates
 
     def build():
         pipe = load_object_pipeline(str(files[0]), str(files[1]))
-        main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]  # noqa: E731
-        return lambda kd, p, n, t, e, b, m, f: pipe.sample(
+        main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]
+        return lambda kd, p, n, t, e, b, m, f, a: pipe.sample(
             main(kd), p, n, t, e, b, m, trajectory=stage, completion=stage,
-            motion_candidates=n_mot, anchor_first=f)
+            motion_candidates=n_mot, anchor_first=f, action=a)
 
     res = cached_call(aot_dir, "sample-object-centric",
                       digest(versions, stage, n_mot, Path(files[0]), Path(files[1])), build, args)

@@ -1,14 +1,16 @@
 """One instruction as the models' text condition: checked, embedded, cached on disk.
 
-:func:`check_text` normalises whitespace and refuses what the encoder cannot read (not a string,
-empty, longer than its token limit) with a :class:`~jaxmotion.errors.GenerateError`, before any
-model is loaded; :func:`embed_one` gives the condition for a batch of one through the on-disk
+:func:`check_text` normalises the text (Unicode folding, whitespace) and refuses what the
+encoder cannot read (not a string, not valid Unicode, empty, no word it knows, longer than its
+token limit) with a :class:`~jaxmotion.errors.GenerateError`, before any model is loaded;
+:func:`embed_one` gives the condition for a batch of one through the on-disk
 caches (a repeated sentence never loads the encoder).
 """
 
 from __future__ import annotations
 
 import functools
+import unicodedata
 from pathlib import Path
 
 import numpy as np
@@ -39,18 +41,47 @@ def _tokenizer():
     return tok
 
 
+_EXAMPLE = 'describe the motion in English words, e.g. "sit on the chair"'
+
+
 def check_text(text) -> str:
+    """``text`` as the models read it, or :class:`GenerateError` saying why it cannot be used.
+
+    The text is Unicode compatibility-folded (NFKC: full-width letters and ligatures become
+    the letters the encoder knows), control and format characters (zero-width spaces, byte
+    order marks) are dropped and whitespace is collapsed. Refused: not a string, not valid
+    Unicode (a lone surrogate), empty after that, no word the encoder knows (only symbols,
+    emoji or scripts outside its vocabulary), longer than the encoder's token limit.
+    """
     if not isinstance(text, str):
-        raise GenerateError(f"text must be a string, got {type(text).__name__}")
+        raise GenerateError(f"text must be a string, got {type(text).__name__}; {_EXAMPLE}")
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as e:
+        raise GenerateError(f"text is not valid Unicode ({e.reason} at character {e.start}, "
+                            f"{text[e.start]!r}); pass the text as UTF-8") from None
+    text = unicodedata.normalize("NFKC", text)
+    text = "".join(" " if unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") else c
+                   for c in text)
     text = " ".join(text.split())
     if not text:
-        raise GenerateError('text is empty; describe the motion, e.g. "sit on the chair"')
+        raise GenerateError(f"text is empty (after dropping control characters); {_EXAMPLE}")
     from jaxmotion.text.minilm import max_seq_length
 
-    n, limit = len(_tokenizer().encode(text).ids), max_seq_length()
+    tok = _tokenizer()
+    try:
+        encoding = tok.encode(text)
+    except Exception as e:  # noqa: BLE001 - the tokenizer's own errors, said as one line
+        raise GenerateError(f"the text encoder's tokenizer cannot read the text ({e}); "
+                            f"{_EXAMPLE}") from None
+    n, limit = len(encoding.ids), max_seq_length()
     if n > limit:
         raise GenerateError(f"text is too long ({n} tokens; the text encoder reads at most "
                             f"{limit}): shorten it to one or two sentences")
+    if not any(any(ch.isalnum() for ch in t) for t in encoding.tokens
+               if t not in ("[CLS]", "[SEP]", "[UNK]", "[PAD]")):
+        raise GenerateError(f"text {text[:60]!r} has no word the text encoder knows (only "
+                            f"symbols, emoji or letters outside its vocabulary); {_EXAMPLE}")
     return text
 
 

@@ -116,6 +116,9 @@ class ObjectCentricTrainConfig(TrainConfig):
         motions alone, as the paper pre-trains on AMASS; the synthetic motions stand in).
       init_from: start from another run's weights (workdir or ``.safetensors``) of the same
         model config, e.g. the fine-tune after ``pretrain=true``; its statistics are kept.
+        ``model.action_token`` may be switched on (its embedding starts at 0).
+      action_unknown_prob: with ``model.action_token``, the share of training examples whose
+        action is given as unknown (as an instruction the grounding stage cannot read).
     """
 
     loss: Literal["l1", "mse"] = "l1"
@@ -125,6 +128,7 @@ class ObjectCentricTrainConfig(TrainConfig):
     std_floor: float = 0.05
     pretrain: bool = False
     init_from: str = ""
+    action_unknown_prob: float = 0.1
     diffusion: DiffusionConfig = dataclasses.field(
         default_factory=lambda: DiffusionConfig(schedule="cosine", steps=200, cond_drop_prob=0.1))
 

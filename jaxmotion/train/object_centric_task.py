@@ -70,6 +70,7 @@ class ObjectCentricTask(DataTask):
         self.loss_type = str(cfg.loss)
         self.pretrain = bool(cfg.pretrain)
         self.sensor_points = int(cfg.sensor_points)
+        self.action_unknown = float(cfg.action_unknown_prob)
         return ObjectCentricNet(net)
 
     def _init_from(self, net, cfg):
@@ -83,11 +84,18 @@ class ObjectCentricTask(DataTask):
             raise ValueError(f"init_from={cfg.init_from}: {path} is a {saved.get('task')!r} "
                              f"checkpoint, not a {cfg.task} one")
         mine = config_to_dict(cfg.model)
-        diff = [f"{k} ({saved['model'].get(k)!r} vs {mine[k]!r})" for k in sorted(mine)
-                if saved["model"].get(k) != mine[k] and k != "temporal_basis"]
+        theirs = {"action_token": False, **saved["model"]}
+        grow = mine["action_token"] and not theirs["action_token"]
+        diff = [f"{k} ({theirs.get(k)!r} vs {mine[k]!r})" for k in sorted(mine)
+                if theirs.get(k) != mine[k] and k != "temporal_basis"
+                and not (grow and k == "action_token")]
         if diff:
             raise ValueError(f"init_from={cfg.init_from}: its model config differs in "
                              f"{', '.join(diff)}; pass the same model.* settings")
+        if grow:  # the action embedding starts at 0: the same function as theirs
+            emb = net.action_embed.embedding
+            tensors = {**tensors, "params/net/action_embed/embedding": np.zeros(emb.shape,
+                                                                               np.float32)}
         apply_weights(net, tensors, prefix="net/", source=str(path))
         return (jnp.asarray(tensors["stats/feature_mean"]),
                 jnp.asarray(tensors["stats/feature_std"]))
@@ -125,7 +133,7 @@ class ObjectCentricTask(DataTask):
 
         net = model.net
         cfg = net.cfg
-        k_drop, k_loss = jax.random.split(key)
+        k_drop, k_loss, k_act = jax.random.split(key, 3)
         mask = jnp.asarray(batch["mask"], bool)
         b = mask.shape[0]
         feats = crop_features(batch)
@@ -143,6 +151,12 @@ class ObjectCentricTask(DataTask):
             drop_s = jax.random.uniform(ks, (b,)) < p
         cond = {"text": batch["text_emb"], "betas": batch["betas"], "env_sensor": env,
                 "target_sensor": tgt, "mask": mask, "drop_text": drop_t, "drop_scene": drop_s}
+        if cfg.action_token:  # the dataset's label, sometimes withheld (as unread text is)
+            from jaxmotion.models.object_centric import UNKNOWN_ACTION
+
+            hide = jax.random.uniform(k_act, (b,)) < (self.action_unknown if train else 0.0)
+            cond["action"] = jnp.where(hide, UNKNOWN_ACTION, jnp.asarray(batch["action"],
+                                                                        jnp.int32))
         if cfg.kind == "completion":
             cond["trajectory"] = x0[..., :9]
             if cfg.traj_sensor:

@@ -1,0 +1,129 @@
+"""The sentence encoder's similarity, where the word lists run out.
+
+:class:`TextSimilarity` embeds short phrases with the text encoder every model here reads
+(all-MiniLM-L6-v2, :data:`jaxmotion.constants.TEXT_ENCODER`), loaded only when a phrase is
+not in its on-disk cache. :func:`guess_action` compares a verb phrase with the prototypes of
+the four actions (:data:`jaxmotion.grounding.lexicon.ACTION_PROTOTYPES`) and
+:func:`guess_category` an object's words with the room's class names; each answers only
+above a cosine threshold and a margin over the runner-up, chosen on MiniLM's scores of
+phrasings outside the word lists (``tests/test_grounding_text.py``): "have a nap on it" is
+0.84 from "take a nap" but "dance around" only 0.51 from "walk there", and "mattress" is
+0.82 from "bed" but "unicorn" at most 0.44 from any class.
+
+Cost: a phrase not seen before costs one pass of the encoder's traced program kept on disk
+(about half a second in a fresh process); a batch of more (the prototypes, once per cache
+folder) loads the encoder (about 5 s once). Seen phrases cost a cache read.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from jaxmotion.constants import TEXT_ENCODER
+from jaxmotion.grounding.lexicon import ACTION_PROTOTYPES
+
+__all__ = ["ACTION_MARGIN", "ACTION_THRESHOLD", "CATEGORY_MARGIN", "CATEGORY_THRESHOLD",
+           "TextSimilarity", "guess_action", "guess_category"]
+
+ACTION_THRESHOLD, ACTION_MARGIN = 0.6, 0.1
+CATEGORY_THRESHOLD, CATEGORY_MARGIN = 0.6, 0.04
+
+
+class TextSimilarity:
+    """Unit-norm embeddings of short phrases, and the nearest of several options by cosine.
+
+    Args:
+      cache_dir: a folder for the embeddings (an
+        :class:`~jaxmotion.text.EmbeddingCache`, keyed apart from the models' text
+        conditions); None keeps them in memory only.
+      embed: ``list[str] -> [B, D]`` used instead of the sentence encoder (another encoder,
+        or a test's stand-in); its rows are normalised here.
+    """
+
+    def __init__(self, cache_dir: str | Path | None = None, *,
+                 embed: Callable[[list[str]], np.ndarray] | None = None):
+        self.cache_dir = None if cache_dir is None else Path(cache_dir)
+        self.custom = embed
+        self.memory: dict[str, np.ndarray] = {}
+
+    def embed(self, texts: Sequence[str]) -> np.ndarray:
+        """``[len(texts), D]`` unit-norm float32 embeddings."""
+        texts = [str(t) for t in texts]
+        missing = [t for t in dict.fromkeys(texts) if t not in self.memory]
+        if missing:
+            new = np.asarray(self.custom(missing) if self.custom is not None
+                             else self.encode(missing), np.float32)
+            new = new / np.maximum(np.linalg.norm(new, axis=-1, keepdims=True), 1e-12)
+            self.memory.update(zip(missing, new))
+        return np.stack([self.memory[t] for t in texts]) if texts else np.zeros((0, 1),
+                                                                                 np.float32)
+
+    def encode(self, texts: list[str]) -> np.ndarray:
+        """The sentence encoder's embeddings of ``texts`` through the on-disk cache: a few new
+        phrases go through the encoder's traced program on disk, more load the encoder."""
+        from jaxmotion.text import EmbeddingCache, cache_key
+        from jaxmotion.text.condition import text_encoder
+        from jaxmotion.text.minilm import encode_one_cached, minilm_dir
+
+        if self.cache_dir is None:
+            return text_encoder()(texts)
+        st = (minilm_dir() / "model.safetensors").stat()
+        version = f"size={st.st_size},mtime={st.st_mtime_ns}"
+        keys = [cache_key(f"{TEXT_ENCODER}:grounding", version, t) for t in texts]
+        cache = EmbeddingCache(self.cache_dir)
+        found = cache.get(keys)
+        todo = [(k, t) for k, t in zip(keys, texts) if k not in found]
+        if todo:
+            if len(todo) <= 3:
+                programs = self.cache_dir.parent / "programs"
+                new = [encode_one_cached(t, programs) for _, t in todo]
+            else:
+                new = list(text_encoder()([t for _, t in todo]))
+            try:
+                cache.put([k for k, _ in todo], np.stack(new))
+            except OSError:  # a read-only cache: the values are just not kept
+                pass
+            found.update(zip([k for k, _ in todo], new))
+        return np.stack([found[k] for k in keys])
+
+    def nearest(self, query: str, options: dict[str, Sequence[str]]) -> tuple[str, float, float]:
+        """The option (``{label: [phrases]}``) one of whose phrases is nearest ``query`` by
+        cosine: ``(label, its cosine, the runner-up label's cosine)``."""
+        labels = [k for k, ps in options.items() for _ in ps]
+        phrases = [p for ps in options.values() for p in ps]
+        sims = self.embed(phrases) @ self.embed([query])[0]
+        best: dict[str, float] = {}
+        for label, s in zip(labels, sims.tolist()):
+            best[label] = max(best.get(label, -1.0), s)
+        ranked = sorted(best.items(), key=lambda kv: -kv[1])
+        second = ranked[1][1] if len(ranked) > 1 else -1.0
+        return ranked[0][0], ranked[0][1], second
+
+
+def guess_action(similarity: TextSimilarity, query: str) -> tuple[str | None, float]:
+    """The action whose prototypes are nearest ``query`` (a verb phrase with its objects as
+    "it": "snooze on it"), or None below :data:`ACTION_THRESHOLD` or within
+    :data:`ACTION_MARGIN` of another action; and the best cosine."""
+    if not query.strip():
+        return None, 0.0
+    label, best, second = similarity.nearest(query, ACTION_PROTOTYPES)
+    ok = best >= ACTION_THRESHOLD and best - second >= ACTION_MARGIN
+    return (label if ok else None), best
+
+
+def guess_category(similarity: TextSimilarity, phrase: str,
+                   categories: Sequence[str]) -> tuple[str | None, float]:
+    """The class of ``categories`` whose name is nearest ``phrase`` ("credenza" among
+    "cabinet", "bed", ...; compared as "a <phrase>" / "a <class>"), or None below
+    :data:`CATEGORY_THRESHOLD` or within :data:`CATEGORY_MARGIN` of another; and the best
+    cosine."""
+    categories = list(dict.fromkeys(categories))
+    if not phrase.strip() or not categories:
+        return None, 0.0
+    label, best, second = similarity.nearest(
+        f"a {phrase}", {c: (f"a {c.replace('_', ' ')}",) for c in categories})
+    ok = best >= CATEGORY_THRESHOLD and best - second >= CATEGORY_MARGIN
+    return (label if ok else None), best

@@ -307,3 +307,13 @@ def test_completion_holds_the_stage_one_trajectory_unless_told_not_to(data, runs
     assert np.abs(np.asarray(own["motion"][:, :9]) - np.asarray(own["trajectory"])).max() > 1e-3
     np.testing.assert_allclose(np.asarray(kept["joints"][:, 0]),
                                np.asarray(kept["trajectory"][:, :3]), atol=1e-5)
+
+
+def test_the_shipped_object_centric_checkpoints_resolve_and_load():
+    from jaxmotion.pipelines.checkpoints import resolve_object_checkpoints
+
+    traj, comp = resolve_object_checkpoints(None)
+    assert traj.name == "trajectory.safetensors" and comp.name == "completion.safetensors"
+    pipe = ObjectCentricPipeline.from_files(traj, comp)
+    assert pipe.trajectory.cfg.action_token and pipe.completion.cfg.kind == "completion"
+    assert pipe.traj_stats[0].shape == (9,) and pipe.comp_stats[0].shape == (135,)

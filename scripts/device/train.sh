@@ -1,5 +1,6 @@
 #!/bin/bash
-# One device call of an ADM (TASK=adm, the default) or AMDM (TASK=amdm) training run on a lent
+# One device call of an ADM (TASK=adm, the default), AMDM (TASK=amdm) or object-centric
+# (TASK=trajectory | completion) training run on a lent
 # GPU machine (see docs/results.md, "Fine-tuning the ADM on a GPU"). Idempotent: call it again
 # and again (each call at most 10 minutes) while the machine stays warm; each call does what is
 # left:
@@ -17,6 +18,9 @@
 # Settings (environment): TASK, SCENES, SPLIT, D (work folder there), TRAIN_ARGS (key=value
 # overrides appended to the defaults below, e.g. "crop.centre=room crop.size=8" for the room view,
 # or "model.target_input=true" for the ADM that reads a known target, shipped since session 11).
+# TASK=trajectory / TASK=completion continue the shipped object-centric models (same CPU size;
+# add TRAIN_ARGS="model.traj_sensor=true sensor_points=2048" and drop init_from for a completion
+# model with the trajectory sensor, or preset=paper for the paper's size, from scratch).
 # TASK=amdm trains the AMDM on the shipped ADM's maps (half the batches) with the temporal basis
 # of the plausibility issue (model.temporal_basis=24: docs/results.md, "A band-limited AMDM"),
 # from scratch; add
@@ -26,7 +30,8 @@ export PYTHONUNBUFFERED=1
 T0=$(date +%s)
 LIMIT=${LIMIT:-550}
 TASK=${TASK:-adm}
-case "$TASK" in adm|amdm) ;; *) echo "TASK must be adm or amdm, got '$TASK'"; exit 2;; esac
+case "$TASK" in adm|amdm|trajectory|completion) ;;
+  *) echo "TASK must be adm, amdm, trajectory or completion, got '$TASK'"; exit 2;; esac
 SCENES=${SCENES:-5000}
 SPLIT=${SPLIT:-2000}
 D=${D:-/root/jm}
@@ -60,6 +65,9 @@ if [ -f "$D/synth/manifest.json" ]; then
     if [ "$TASK" = amdm ]; then
       TASK_ARGS="--config configs/amdm.py adm_workdir=$PWD/jaxmotion/assets/adm.safetensors
         model.temporal_basis=24 predicted_fraction=0.5 adm_sampler_steps=10"
+    elif [ "$TASK" = trajectory ] || [ "$TASK" = completion ]; then
+      TASK_ARGS="--config configs/$TASK.py model.temporal_basis=24
+        init_from=$PWD/jaxmotion/assets/$TASK.safetensors"
     else
       TASK_ARGS="--config configs/adm.py backbone_workdir=$PWD/.dev/seg model.text_tokens=24
         init_from=$PWD/jaxmotion/assets/adm.safetensors grounding_every=500 grounding_cases=256"

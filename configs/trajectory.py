@@ -16,8 +16,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from jaxmotion.models.configs import ObjectCentricConfig, preset_overrides
-from jaxmotion.train.config import ObjectCentricTrainConfig
+from jaxmotion.models.configs import ObjectCentricConfig
+from jaxmotion.train.config import ObjectCentricTrainConfig, object_centric_presets
 
 KIND = "trajectory"
 
@@ -32,25 +32,7 @@ class TrajectoryTrainConfig(ObjectCentricTrainConfig):
         default_factory=lambda: ObjectCentricConfig(kind=KIND, action_token=True))
 
 
-def _model_preset(name: str) -> dict[str, Any]:
-    """The model sizes of preset ``name`` (its ``kind`` stays this file's)."""
-    return {k: v for k, v in preset_overrides(ObjectCentricConfig, name, "model.").items()
-            if k not in ("model.kind", "model.traj_sensor", "model.action_token")}
-
-
-PRESETS: dict[str, dict[str, Any]] = {
-    "default": {"crop.num_points": 2048, "optim.lr": 2e-4, "optim.warmup_steps": 200,
-                "eval_every": 250, "ckpt_every": 250},
-    "tiny": {**_model_preset("tiny"),
-             "crop.num_points": 256, "sensor_points": 64, "batch_size": 4, "steps": 20,
-             "log_every": 5, "eval_every": 10, "eval_batches": 1, "ckpt_every": 10,
-             "diffusion.steps": 50, "stats_batches": 2, "optim.lr": 1e-3,
-             "optim.warmup_steps": 2, "progress": False},
-    "paper": {**_model_preset("paper"),
-              "model.traj_sensor": True, "crop.num_points": 8192, "sensor_points": 0,
-              "batch_size": 256, "steps": 200_000, "optim.lr": 1e-4,
-              "optim.ema_decay": 0.0},
-}
+PRESETS: dict[str, dict[str, Any]] = object_centric_presets(paper_batch=256)
 
 
 def get_config() -> TrajectoryTrainConfig:

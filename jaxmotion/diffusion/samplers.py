@@ -314,9 +314,12 @@ class SamplerSpec:
         if not 0.0 <= float(self.consistency) <= 1.0:
             raise ValueError(f"consistency must be in [0, 1] (0 = off), got {self.consistency}")
 
-    def run(self, key, denoise, schedule, shape, cond, null_cond, refine_fn=None):
+    def run(self, key, denoise, schedule, shape, cond, null_cond, refine_fn=None, *,
+            known_mask=None, known_values=None):
+        """Sample with this spec; ``known_mask`` / ``known_values`` hold entries fixed
+        (inpainting in x0 mode, as :func:`ddim_sample`)."""
         kw = dict(cond=cond, guidance_scale=self.guidance, null_cond=null_cond,
-                  refine_fn=refine_fn)
+                  refine_fn=refine_fn, known_mask=known_mask, known_values=known_values)
         if self.method == "ddpm":
             return ddpm_sample(key, denoise, schedule, shape, **kw)
         if self.method == "ddim":

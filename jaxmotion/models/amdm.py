@@ -39,19 +39,17 @@ import jax.numpy as jnp
 from flax import nnx
 
 from jaxmotion.models.configs import AMDMConfig
-from jaxmotion.models.layers import (TimestepEmbedder, TransformerDecoderLayer,
-                                     TransformerEncoderLayer, low_frequency_projection,
-                                     sinusoidal_embedding)
+from jaxmotion.models.layers import (
+    TimestepEmbedder,
+    TransformerDecoderLayer,
+    TransformerEncoderLayer,
+    keep_rows,
+    low_frequency_projection,
+    sinusoidal_embedding,
+)
 from jaxmotion.models.point_transformer import PointTransformerEncoder, PointTransformerUNet
 
 __all__ = ["AMDM"]
-
-
-def _drop(cond, key, b):
-    """Multiplier ``[B, 1]`` that zeroes rows with ``cond[key]`` set (1 if absent)."""
-    if cond.get(key) is None:
-        return jnp.ones((b, 1), jnp.float32)
-    return 1.0 - jnp.asarray(cond[key], jnp.float32).reshape(b, 1)
 
 
 class AMDM(nnx.Module):
@@ -124,10 +122,10 @@ class AMDM(nnx.Module):
         mask = jnp.ones((b, nt), bool) if mask is None else jnp.asarray(mask, bool)
         if "point_tokens" not in cond:
             cond = self.encode_condition(cond, deterministic=det)
-        tokens, keep = cond["point_tokens"], _drop(cond, "drop_affordance", b)[:, :, None]
+        tokens, keep = cond["point_tokens"], keep_rows(cond, "drop_affordance", b)[:, :, None]
         t = jnp.broadcast_to(jnp.asarray(t), (b,))
         prefix = [self.time_embed(t)[:, None],
-                  self.text_proj(text * _drop(cond, "drop_text", b))[:, None]]
+                  self.text_proj(text * keep_rows(cond, "drop_text", b))[:, None]]
         if cfg.arch == "enc":
             prefix.append(self.point_proj(tokens * keep))
         n_prefix = sum(p.shape[1] for p in prefix)

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 from flax import nnx
 
 __all__ = [
+    "keep_rows",
     "sinusoidal_embedding", "TimestepEmbedder", "MLP", "MultiHeadAttention",
     "TransformerEncoderLayer", "TransformerDecoderLayer", "PerceiverLayer", "activation",
     "param_count", "dct_basis", "low_frequency_projection",
@@ -34,6 +35,14 @@ def activation(name: str) -> Callable[[jax.Array], jax.Array]:
     if name not in table:
         raise ValueError(f"unknown activation {name!r}; valid: {sorted(table)}")
     return table[name]
+
+
+def keep_rows(cond: dict, key: str, b: int) -> jax.Array:
+    """Condition-dropout multiplier ``[B, 1]``: 0 for the rows where ``cond[key]`` ([B], bool or
+    0-1) is set, 1 elsewhere, and 1 for every row when ``cond`` has no ``key``."""
+    if cond.get(key) is None:
+        return jnp.ones((b, 1), jnp.float32)
+    return 1.0 - jnp.asarray(cond[key], jnp.float32).reshape(b, 1)
 
 
 def sinusoidal_embedding(positions: jax.Array, dim: int, max_period: float = 10000.0) -> jax.Array:

@@ -37,6 +37,7 @@ from jaxmotion.models.configs import ObjectCentricConfig
 from jaxmotion.models.layers import (
     TimestepEmbedder,
     TransformerDecoderLayer,
+    keep_rows,
     low_frequency_projection,
     sinusoidal_embedding,
 )
@@ -59,12 +60,6 @@ class _SensorMLP(nnx.Module):
 
     def __call__(self, x):
         return self.fc2(jax.nn.silu(self.fc1(x)))
-
-
-def _drop(cond, key, b):
-    if cond.get(key) is None:
-        return jnp.ones((b, 1), jnp.float32)
-    return 1.0 - jnp.asarray(cond[key], jnp.float32).reshape(b, 1)
 
 
 def _flat_sensor(s, res):
@@ -116,7 +111,7 @@ class ObjectCentricDenoiser(nnx.Module):
         mask = cond.get("mask")
         mask = jnp.ones((b, nt), bool) if mask is None else jnp.asarray(mask, bool)
         res = cfg.sensor_res
-        keep_scene, keep_text = _drop(cond, "drop_scene", b), _drop(cond, "drop_text", b)
+        keep_scene, keep_text = keep_rows(cond, "drop_scene", b), keep_rows(cond, "drop_text", b)
         text_tok = self.text_proj(jnp.asarray(cond["text"], jnp.float32) * keep_text)
         if cfg.action_token:
             action = cond.get("action")

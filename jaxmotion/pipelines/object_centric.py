@@ -182,22 +182,13 @@ class ObjectCentricPipeline:
             return self.completion(x, t, c, deterministic=True)
 
         shape = (1, nt, c_mean.shape[0])
-        if keep_trajectory:
-            from jaxmotion.diffusion.samplers import ddim_sample, ddpm_sample
-
+        known = values = None
+        if keep_trajectory:  # the stage-1 trajectory held at every step (inpainting)
             known = jnp.zeros(shape, bool).at[..., :TRAJECTORY_DIM].set(True)
             values = jnp.zeros(shape, jnp.float32).at[..., :TRAJECTORY_DIM].set(
                 cond["trajectory"])
-            kw = dict(cond=cond, guidance_scale=completion_spec.guidance,
-                      null_cond={**cond, **null}, known_mask=known, known_values=values)
-            if completion_spec.method == "ddpm":
-                y = ddpm_sample(k_comp, comp_denoise, self.comp_schedule, shape, **kw)
-            else:
-                y = ddim_sample(k_comp, comp_denoise, self.comp_schedule, shape,
-                                num_steps=completion_spec.steps, eta=completion_spec.eta, **kw)
-        else:
-            y = completion_spec.run(k_comp, comp_denoise, self.comp_schedule, shape, cond,
-                                    {**cond, **null})
+        y = completion_spec.run(k_comp, comp_denoise, self.comp_schedule, shape, cond,
+                                {**cond, **null}, known_mask=known, known_values=values)
         motion = y[0] * c_std + c_mean
         return {"trajectory": traj, "motion": motion, "joints": motion_to_joints(motion, betas)}
 

@@ -13,7 +13,8 @@ from typing import Literal
 
 from jaxmotion.data.config import AffordanceConfig, CropConfig
 
-__all__ = ["DiffusionConfig", "ObjectCentricTrainConfig", "OptimConfig", "TrainConfig"]
+__all__ = ["DiffusionConfig", "ObjectCentricTrainConfig", "OptimConfig", "TrainConfig",
+           "object_centric_presets"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -142,3 +143,29 @@ class ObjectCentricTrainConfig(TrainConfig):
         if self.sensor_points < 0 or self.stats_batches < 1:
             raise ValueError(f"need sensor_points >= 0 and stats_batches >= 1, got "
                              f"{self.sensor_points}, {self.stats_batches}")
+
+
+def object_centric_presets(paper_batch: int) -> dict[str, dict]:
+    """The ``PRESETS`` of ``configs/trajectory.py`` and ``configs/completion.py``: ``default``
+    (CPU), ``tiny`` (tests) and ``paper`` (batch ``paper_batch``, the trajectory sensor on).
+    The model sizes come from :class:`~jaxmotion.models.configs.ObjectCentricConfig`'s presets;
+    its ``kind``, ``traj_sensor`` and ``action_token`` stay each config file's."""
+    from jaxmotion.models.configs import ObjectCentricConfig, preset_overrides
+
+    def sizes(name):
+        return {k: v for k, v in preset_overrides(ObjectCentricConfig, name, "model.").items()
+                if k not in ("model.kind", "model.traj_sensor", "model.action_token")}
+
+    return {
+        "default": {"crop.num_points": 2048, "optim.lr": 2e-4, "optim.warmup_steps": 200,
+                    "eval_every": 250, "ckpt_every": 250},
+        "tiny": {**sizes("tiny"),
+                 "crop.num_points": 256, "sensor_points": 64, "batch_size": 4, "steps": 20,
+                 "log_every": 5, "eval_every": 10, "eval_batches": 1, "ckpt_every": 10,
+                 "diffusion.steps": 50, "stats_batches": 2, "optim.lr": 1e-3,
+                 "optim.warmup_steps": 2, "progress": False},
+        "paper": {**sizes("paper"),
+                  "model.traj_sensor": True, "crop.num_points": 8192, "sensor_points": 0,
+                  "batch_size": paper_batch, "steps": 200_000, "optim.lr": 1e-4,
+                  "optim.ema_decay": 0.0},
+    }

@@ -5,6 +5,20 @@ import os
 # Keep XLA from grabbing every core for thread pools in tiny tests.
 os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false")
 
+# The suite never reads compiled programs it did not write itself: jaxmotion's cache (and XLA's
+# persistent one, which a process opens once) go to a folder of this run, unless
+# JAXMOTION_TEST_CACHE names one to keep between local runs.
+if os.environ.get("JAXMOTION_TEST_CACHE"):
+    os.environ["JAXMOTION_CACHE"] = os.environ["JAXMOTION_TEST_CACHE"]
+else:
+    import atexit  # noqa: E402
+    import shutil  # noqa: E402
+    import tempfile  # noqa: E402
+
+    _cache = tempfile.mkdtemp(prefix="jaxmotion-test-cache-")
+    atexit.register(shutil.rmtree, _cache, ignore_errors=True)
+    os.environ["JAXMOTION_CACHE"] = _cache
+
 from hypothesis import HealthCheck, settings  # noqa: E402
 
 settings.register_profile(

@@ -44,6 +44,22 @@ def test_parse_model_consistency():
             parse_model(bad)
 
 
+def test_parse_model_object_centric_options():
+    base = "o=x,y,ddim20,trajectory=t,completion=c"
+    m = parse_model(base)
+    assert m.object_centric and m.anchor == 1.0 and m.keep_trajectory
+    assert m.sampler_label == "object-centric, DDIM-20"
+    m = parse_model(base + ",anchor=0,keep_trajectory=0")
+    assert m.anchor == 0.0 and not m.keep_trajectory
+    assert "no anchor guidance" in m.sampler_label
+    assert "anchor guidance 0.5" in parse_model(base + ",anchor=0.5").sampler_label
+    for bad in ("anchor=2", "anchor=-1", "anchor=yes"):
+        with pytest.raises(ValueError, match="anchor must be a strength"):
+            parse_model(f"{base},{bad}")
+    with pytest.raises(ValueError, match="keep_trajectory must be"):
+        parse_model(base + ",keep_trajectory=yes")
+
+
 def test_ground_truth_affordance_row(tiny_runs, tmp_path):
     """affordance=gt: the AMDM on the dataset's own maps; its own row, no grounding columns
     (there are no ADM maps to score). keep_motions: the joints come back, and to motions.npz."""

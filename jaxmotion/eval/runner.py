@@ -83,6 +83,7 @@ class ModelSpec:
     trajectory: str | None = None  # with completion: the object-centric pipeline samples the row
     completion: str | None = None  # (the ADM still finds the generate protocol's regions)
     keep_trajectory: bool = True  # object-centric: the completion holds the stage-1 trajectory
+    anchor: float = 1.0  # object-centric: anchor guidance strength on the trajectory (0 = off)
 
     @property
     def object_centric(self) -> bool:
@@ -95,6 +96,9 @@ class ModelSpec:
             label = "object-centric, " + label
             if not self.keep_trajectory:
                 label += " (completion writes its own trajectory)"
+            if self.anchor != 1.0:
+                label += (" (no anchor guidance)" if self.anchor == 0
+                          else f" (anchor guidance {self.anchor:g})")
         guided = [f"{stage} w={g:g}" for stage, g in
                   (("ADM", self.adm_guidance), ("AMDM", self.amdm_guidance)) if g != 1.0]
         if self.consistency:
@@ -122,7 +126,7 @@ def _checked(text: str, check, *args):
 def parse_model(text: str) -> ModelSpec:
     """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,consistency=S]
     [,affordance=adm|gt][,adm_candidates=C][,adm_steps=N][,motion_candidates=M]
-    [,trajectory=T,completion=C[,keep_trajectory=1|0]]`` →
+    [,trajectory=T,completion=C[,keep_trajectory=1|0][,anchor=S]]`` →
     :class:`ModelSpec` (the
     ``--model`` syntax). ``adm_steps``: DDIM steps of the ADM stage when they differ from the
     sampler's (as ``jaxmotion generate --adm-steps``).
@@ -137,7 +141,9 @@ def parse_model(text: str) -> ModelSpec:
     both or neither): the object-centric pipeline samples the row's motions (the sampler and
     ``amdm_guidance`` apply to both of its stages), while the ADM and AMDM still set the
     crops and find the generate protocol's regions; ``keep_trajectory=0`` lets the completion
-    model write its own trajectory (the authors' way) instead of holding the stage-1 one."""
+    model write its own trajectory (the authors' way) instead of holding the stage-1 one;
+    ``anchor`` is the strength in [0, 1] of the trajectory stage's anchor guidance (default 1;
+    0 = off, :mod:`jaxmotion.diffusion.anchor_guidance`)."""
     name, sep, rest = text.partition("=")
     usage = (f"--model {text!r}: expected NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G]"
              "[,amdm_guidance=G][,consistency=S][,affordance=adm|gt], e.g. "
@@ -172,6 +178,16 @@ def parse_model(text: str) -> ModelSpec:
                                  f"model holds the stage-1 trajectory) or 0, got {value!r}")
             objects[key] = value == "1"
             continue
+        if key == "anchor":
+            try:
+                strength = float(value)
+            except ValueError:
+                strength = -1.0
+            if not 0.0 <= strength <= 1.0:
+                raise ValueError(f"--model {text!r}: anchor must be a strength in [0, 1] "
+                                 f"(0 = no anchor guidance), got {value!r}")
+            objects[key] = strength
+            continue
         if key in ("adm_candidates", "adm_steps", "motion_candidates"):
             if not value.isdigit() or int(value) < 1:
                 raise ValueError(f"--model {text!r}: {key} must be an integer ≥ 1, "
@@ -198,7 +214,8 @@ def parse_model(text: str) -> ModelSpec:
             raise ValueError(f"--model {text!r}: unknown option {key!r}; valid: "
                              + ", ".join([*guidance, "consistency", "affordance",
                                           "adm_candidates", "adm_steps",
-                                          "motion_candidates", "trajectory", "completion"]))
+                                          "motion_candidates", "trajectory", "completion",
+                                          "keep_trajectory", "anchor"]))
         try:
             guidance[key] = float(value)
         except ValueError:
@@ -539,7 +556,7 @@ def evaluate(
                         trajectory=amdm_sampler, completion=amdm_sampler,
                         motion_candidates=spec.motion_candidates,
                         anchor_first=np.array([anchor_is_first(cases[i]["text"]) for i in idx]),
-                        keep_trajectory=spec.keep_trajectory,
+                        keep_trajectory=spec.keep_trajectory, anchor_guidance=spec.anchor,
                         action=np.array([action_index(read_instruction(cases[i]["text"]).action)
                                          for i in idx])))
                 else:

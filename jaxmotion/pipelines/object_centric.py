@@ -7,7 +7,9 @@ in it, a sentence embedding and a body shape:
    sensor** (a cube over the target's box, read from the target's own points) describe the
    scene (:func:`crop_sensors`);
 2. the **trajectory model** samples the root trajectory (pelvis position and 6D orientation per
-   frame, :mod:`jaxmotion.motion.representation`);
+   frame, :mod:`jaxmotion.motion.representation`); for sit, stand up and lie, anchor guidance
+   (:mod:`jaxmotion.diffusion.anchor_guidance`) steers its pelvis over the target's support
+   surface at the anchor frame;
 3. the **completion model** samples the whole motion (trajectory + 21 body rotations) given
    that trajectory, one token per frame built from it and from the **trajectory sensor**
    (a 2 m cube per frame at the root, turned with it, :func:`trajectory_sensors`);
@@ -28,6 +30,7 @@ import jax
 import jax.numpy as jnp
 from flax import nnx
 
+from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
 from jaxmotion.models.object_centric import ACTION_CLASSES, UNKNOWN_ACTION
@@ -133,7 +136,8 @@ class ObjectCentricPipeline:
     def sample_one(self, key, points, normals, target_mask, text, betas, mask, *,
                    trajectory_spec: SamplerSpec = DEFAULT_SPEC,
                    completion_spec: SamplerSpec = DEFAULT_SPEC,
-                   keep_trajectory: bool = True, action=None) -> dict:
+                   keep_trajectory: bool = True, action=None,
+                   anchor_guidance: float = 1.0) -> dict:
         """One motion in one crop (jit / vmap it).
 
         Args:
@@ -149,6 +153,9 @@ class ObjectCentricPipeline:
           action: the action the instruction asks for, an index into
             :data:`~jaxmotion.models.object_centric.ACTION_CLASSES` (None: unknown); read by
             models with ``action_token``, ignored by others.
+          anchor_guidance: the strength in [0, 1] of anchor guidance on the trajectory stage
+            (:mod:`jaxmotion.diffusion.anchor_guidance`: for sit, stand up and lie the pelvis
+            is moved over the target's support surface at the anchor frame; 0 = off).
         Returns:
           ``{"trajectory" [T, 9], "motion" [T, 135], "joints" [T, 22, 3]}`` in metres, crop
           frame; frames outside ``mask`` are not meaningful.
@@ -168,8 +175,12 @@ class ObjectCentricPipeline:
         def traj_denoise(x, t, c):
             return self.trajectory(x, t, c, deterministic=True)
 
+        refine = None
+        if anchor_guidance:
+            refine = make_anchor_refiner(points, normals, target_mask, mask,
+                                         base["action"][0], t_mean, t_std, anchor_guidance)
         x = trajectory_spec.run(k_traj, traj_denoise, self.traj_schedule,
-                                (1, nt, TRAJECTORY_DIM), base, {**base, **null})
+                                (1, nt, TRAJECTORY_DIM), base, {**base, **null}, refine)
         traj = x[0] * t_std + t_mean
         c_mean, c_std = self.comp_stats
         cond = {**base, "trajectory": ((traj - c_mean[:TRAJECTORY_DIM])
@@ -195,7 +206,8 @@ class ObjectCentricPipeline:
     def sample(self, key, points, normals, target, text_emb, betas, mask, *,
                trajectory: SamplerSpec = DEFAULT_SPEC, completion: SamplerSpec = DEFAULT_SPEC,
                motion_candidates: int = 1, anchor_first=None,
-               keep_trajectory: bool = True, action=None) -> dict:
+               keep_trajectory: bool = True, action=None,
+               anchor_guidance: float = 1.0) -> dict:
         """Motions for a batch of crops, the best of ``motion_candidates`` each.
 
         Args:
@@ -204,8 +216,9 @@ class ObjectCentricPipeline:
           trajectory, completion: the two stages' samplers; anchor_first ``[B]`` bool or None
           (as :func:`~jaxmotion.pipelines.affordance.select_motion`, which picks among the
           candidates: never a teleporting one while another is smooth, else the closest to
-          the target at the anchor frame); keep_trajectory: as :meth:`sample_one`; action:
-          ``[B]`` int indices into ``ACTION_CLASSES`` (None: unknown).
+          the target at the anchor frame); keep_trajectory, anchor_guidance: as
+          :meth:`sample_one`; action: ``[B]`` int indices into ``ACTION_CLASSES`` (None:
+          unknown).
         Returns:
           ``{"joints": [B, T, 22, 3]}`` in the crop frame.
         """
@@ -220,7 +233,7 @@ class ObjectCentricPipeline:
         def one(k, p, n, t, e, bt, mk, a):
             return self.sample_one(k, p, n, t, e, bt, mk, trajectory_spec=trajectory,
                                    completion_spec=completion, keep_trajectory=keep_trajectory,
-                                   action=a)["joints"]
+                                   action=a, anchor_guidance=anchor_guidance)["joints"]
 
         per_candidate = jax.vmap(one, in_axes=(0, None, None, None, None, None, None, None))
         joints = jax.vmap(per_candidate)(keys, points, normals, target, text_emb, betas, mask,

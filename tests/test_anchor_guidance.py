@@ -198,3 +198,21 @@ def test_an_armrest_beside_the_pelvis_does_not_raise_the_seat():
     s = A.support_surface(jnp.asarray(pts), jnp.asarray(nrm), jnp.ones(len(pts), bool))
     h = float(A.surface_height(jnp.asarray([1.25, 1.4]), jnp.asarray(pts), s))
     assert h == pytest.approx(0.45, abs=1e-6)
+
+
+def test_the_horizontal_offset_waits_for_the_final_prediction_the_height_does_not():
+    mean, std = np.zeros(9, np.float32), np.ones(9, np.float32)
+    x0 = jnp.zeros((1, 30, 9)).at[..., 0].set(0.3).at[..., 1].set(1.25).at[..., 2].set(0.9)
+    pts, nrm, _ = _chair()
+    fn = A.make_anchor_refiner(jnp.asarray(pts), jnp.asarray(nrm), jnp.ones(len(pts), bool),
+                               jnp.ones(30, bool), SIT, mean, std)
+    noisy = np.asarray(fn(x0, jnp.full((1,), 500, jnp.int32)))
+    clean = np.asarray(fn(x0, jnp.zeros((1,), jnp.int32)))
+    np.testing.assert_array_equal(noisy[..., :2], np.asarray(x0)[..., :2])
+    np.testing.assert_allclose(noisy[0, -1, 2], 0.45 + A.SEATED_PELVIS, atol=1e-5)
+    assert np.abs(clean[0, -1, :2] - np.asarray(x0)[0, -1, :2]).max() > 0.5
+    everywhere = A.make_anchor_refiner(jnp.asarray(pts), jnp.asarray(nrm),
+                                       jnp.ones(len(pts), bool), jnp.ones(30, bool), SIT, mean,
+                                       std, shift_until=None)
+    np.testing.assert_allclose(np.asarray(everywhere(x0, jnp.full((1,), 500, jnp.int32))),
+                               clean, atol=1e-5)

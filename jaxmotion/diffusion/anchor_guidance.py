@@ -26,14 +26,21 @@ point, carried further along the direction of approach by the largest of
 :data:`INSETS` that still lands within :data:`ON_SURFACE` of a surface point (a seated pelvis
 is 12–20 cm in from the seat's edge, :mod:`jaxmotion.motion.seating`).
 
-What moves. One horizontal offset for the whole trajectory: the path keeps its shape and the
-feet stay planted (no frame moves relative to another, so no horizontal speed or skating is
-added). And the pelvis height around the anchor: the :data:`HOLD` frames nearest the anchor are
-lifted or lowered by the one amount that puts the anchor pelvis :data:`SEATED_PELVIS`
-(:data:`LYING_PELVIS` for lie) over the surface under it (:func:`surface_height`), and the
-next :data:`TAPER` frames by a linearly falling share of it; the sampler's later steps turn
-that ramp into the model's own sitting down (or getting up). Only the actions that end (or, for stand up, start) on
-the target are guided: sit, stand up, lie; walk and the unknown action are left alone.
+What moves. One horizontal offset for the whole trajectory, applied to the final prediction
+only: the path keeps its shape and the feet stay planted (no frame moves relative to another, so
+no horizontal speed or skating is added). Applied at every step instead, the model keeps pulling
+its path back towards its own end while the offset pushes it, and the path comes out stretched:
+on the validation split (24 cases) the pelvis p99 was 2.48 m/s and foot skating 45.7 % that
+way, 2.26 m/s and 38.0 % this way, with the same judge (87.5 %).
+
+And, at every step, the pelvis height around the anchor: the :data:`HOLD` frames nearest the
+anchor are lifted or lowered by the one amount that puts the anchor pelvis
+:data:`SEATED_PELVIS` (:data:`LYING_PELVIS` for lie) over the surface under it
+(:func:`surface_height`), and the next :data:`TAPER` frames by a linearly falling share of it;
+the sampler's later steps turn that ramp into the model's own sitting down (or getting up).
+
+Only the actions that end (or, for stand up, start) on the target are guided: sit, stand up,
+lie; walk and the unknown action are left alone.
 
 Pure functions of arrays for one motion; ``vmap`` for batches.
 """
@@ -150,14 +157,17 @@ def anchor_offset(pelvis_xy, points_xy, surface) -> jnp.ndarray:
 
 
 def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
-                        strength: float = 1.0, until: int | None = None):
+                        strength: float = 1.0, until: int | None = None,
+                        shift_until: int | None = 0):
     """A ``refine_fn(x0_hat, t)`` for :func:`jaxmotion.diffusion.samplers.ddim_sample` on the
     trajectory stage: ``x0_hat [B, T, 9]`` normalised trajectory features (pelvis xyz first;
     ``mean``/``std`` their statistics), all B rows for the one crop ``points``/``normals``
     ``[N, 3]``, ``target_mask [N]``, ``mask [T]`` and ``action`` (an index, may be traced;
     actions other than sit / stand up / lie pass through unchanged). ``strength`` in [0, 1] is
     the fraction of the offset taken at each step; ``until``: the largest diffusion timestep
-    at which it acts (None: every step; 0: only the last, clean-data prediction)."""
+    at which it acts (None: every step; 0: only the last, clean-data prediction);
+    ``shift_until``: the same for the horizontal offset alone (default 0: the offset moves the
+    final prediction only, so the path's speeds are the model's own; None: as ``until``)."""
     points = jnp.asarray(points)
     surface = support_surface(points, jnp.asarray(normals), jnp.asarray(target_mask))
     mask = jnp.asarray(mask, bool)
@@ -170,16 +180,21 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
     mean, std = jnp.asarray(mean), jnp.asarray(std)
 
     def refine(x0_hat, t):
-        gate = on if until is None else on * (t[:, None] <= until).astype(jnp.float32)
-        gate = jnp.broadcast_to(gate, (x0_hat.shape[0], 1))
+        def acts(limit):  # [B, 1]: 1 where this step's timestep is at most ``limit``
+            ok = jnp.ones_like(t, bool) if limit is None else t <= limit
+            return ok[:, None].astype(jnp.float32)
+
+        gate = on * acts(until)
+        gate_xy = gate if shift_until is None else gate * acts(shift_until)
         pelvis = x0_hat[:, frame, :3] * std[:3] + mean[:3]  # [B, 3] metres
         offset = jax.vmap(anchor_offset, in_axes=(0, None, None))(pelvis[:, :2], points[:, :2],
                                                                    surface)
         xy = pelvis[:, :2] + offset
         height = jax.vmap(surface_height, in_axes=(0, None, None))(xy, points, surface)
         lift = jnp.where(jnp.isnan(height), 0.0, height + rest - pelvis[:, 2])  # [B]
-        move = jnp.concatenate([offset[:, None, :] * jnp.ones_like(weight)[None, :, None],
-                                (lift[:, None] * weight[None])[..., None]], axis=-1)  # [B,T,3]
-        return x0_hat.at[..., :3].add(gate[:, :, None] * move / std[:3])
+        move = jnp.concatenate(
+            [gate_xy[:, :, None] * offset[:, None, :] * jnp.ones_like(weight)[None, :, None],
+             gate[:, :, None] * (lift[:, None] * weight[None])[..., None]], axis=-1)  # [B,T,3]
+        return x0_hat.at[..., :3].add(move / std[:3])
 
     return refine

@@ -16,7 +16,7 @@ cache), the second is what a user typing new sentences gets from then on.
 
     python benchmarks/generate.py [--runs 3] [--steps 20] [--video gif|mp4|none] [--consistency S]
         [--adm-candidates C] [--adm-steps N] [--motion-candidates M] [--new-texts]
-        [--pipeline affordance|object-centric] [--object-checkpoints DIR | TRAJ COMP]
+        [--pipeline auto|affordance|object-centric] [--object-checkpoints DIR | TRAJ COMP]
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def run_once(cache: str, out: str, args, text: str | None = None) -> tuple[float
         cmd += ["--motion-candidates", str(args.motion_candidates)]
     if args.adm_steps is not None:
         cmd += ["--adm-steps", str(args.adm_steps)]
-    if args.pipeline != "affordance":
+    if args.pipeline != "auto":
         cmd += ["--pipeline", args.pipeline]
     if args.object_checkpoints:
         cmd += ["--object-checkpoints", *args.object_checkpoints]
@@ -78,8 +78,9 @@ def main():
     ap.add_argument("--samples", type=int, default=1)
     ap.add_argument("--video", default="gif", choices=("gif", "mp4", "none"))
     ap.add_argument("--checkpoints", nargs="+", default=None)
-    ap.add_argument("--pipeline", default="affordance", choices=("affordance", "object-centric"),
-                    help="which pipeline generate runs (time both in one session to compare)")
+    ap.add_argument("--pipeline", default="auto", choices=("auto", "affordance", "object-centric"),
+                    help="which pipeline generate runs (default: generate's own, auto; time two "
+                    "in one session to compare)")
     ap.add_argument("--object-checkpoints", nargs="+", default=None,
                     help="the object-centric models (folder, or trajectory and completion runs)")
     ap.add_argument("--consistency", type=float, default=None,

@@ -397,10 +397,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a folder with adm.safetensors and amdm.safetensors (and optionally "
                    "adm_text.safetensors, the ADM used when no target object is known), or the "
                    "ADM and AMDM training workdirs (default: the shipped checkpoints)")
-    p.add_argument("--pipeline", choices=("affordance", "object-centric"), default="affordance",
-                   help="affordance: ADM -> AMDM (default); object-centric: volumetric sensors "
-                   "around the target -> root trajectory -> motion completion (Cen et al. "
-                   "2024; needs a target object, found as for the affordance pipeline)")
+    p.add_argument("--pipeline", choices=("auto", "affordance", "object-centric"),
+                   default="auto",
+                   help="object-centric: volumetric sensors around the target -> root "
+                   "trajectory -> motion completion (Cen et al. 2024; needs a target object, "
+                   "found as for the affordance pipeline); affordance: ADM -> AMDM; auto "
+                   "(default): object-centric when the target object is known, else affordance")
     p.add_argument("--object-checkpoints", nargs="+", default=None, metavar="PATH",
                    help="the object-centric models: a folder with trajectory.safetensors and "
                    "completion.safetensors, or their training workdirs (default: the shipped "

@@ -1,6 +1,6 @@
 """From a room and a sentence to a motion: the main job of jaxmotion, stage by stage.
 
-:func:`generate` runs the affordance pipeline end to end on any scene::
+:func:`generate` runs a pipeline end to end on any scene::
 
     import jaxmotion
     res = jaxmotion.generate("demo", "sit on the chair next to the table", samples=4, seed=0)
@@ -19,11 +19,12 @@ This module only orchestrates; each stage lives in its own module:
    graph (a relation in the text), the only object of the named class, or the ADM's map among
    the candidates; the crop square the models see is centred on it (or on the room's
    strongest predicted affordance when the text names no object of the room);
-4. **synthesize** (:mod:`jaxmotion.pipelines.affordance`): ADM maps then AMDM motions for the
-   K samples in one compiled, vmapped program (kept on disk by :mod:`jaxmotion.compiled`).
-   Once the target is known, the other objects of its class are kept out of the maps, an ADM
-   that reads a target is told it, the ADM draws ``adm_candidates`` maps and the AMDM
-   ``motion_candidates`` motions per sample, and the ones reaching the target are kept;
+4. **synthesize** the K samples in one compiled, vmapped program (kept on disk by
+   :mod:`jaxmotion.compiled`): ``pipeline="auto"`` (the default) runs the object-centric
+   pipeline (:mod:`jaxmotion.pipelines.object_centric`: sensors, root trajectory, body) when
+   the target object is known, else the affordance one (:mod:`jaxmotion.pipelines.affordance`:
+   ADM maps, then AMDM motions; a known target's class mates are kept out of the maps);
+   ``motion_candidates`` motions per sample, the plausible one reaching the target kept;
 5. **fit** SMPL-X bodies to the joints (:func:`jaxmotion.body.fit_joints_to_body`);
 6. the **result** (:class:`jaxmotion.result.Generation`), whose ``save`` writes the files
    (:mod:`jaxmotion.export.folder`).
@@ -68,7 +69,7 @@ class _Models:
         return load_pipeline(str(adm), str(self.amdm))
 
 
-def _check_models(checkpoints, object_checkpoints=None, pipeline="affordance") -> _Models:
+def _check_models(checkpoints, object_checkpoints=None, pipeline="auto") -> _Models:
     from jaxmotion.data.crop import crop_spec_from_config
     from jaxmotion.pipelines.checkpoints import (adm_text_tokens, adm_view, resolve_checkpoints,
                                                  text_adm_for, weights_config)
@@ -88,11 +89,12 @@ def _check_models(checkpoints, object_checkpoints=None, pipeline="affordance") -
                                 "(model.text_tokens) and see the same view (crop.centre); "
                                 f"remove {text_adm.name} to use {Path(adm_file).name} alone")
     objects = None
-    if pipeline == "object-centric":
+    if pipeline != "affordance":  # auto or object-centric
         from jaxmotion.pipelines.checkpoints import resolve_object_checkpoints
 
         objects = resolve_object_checkpoints(object_checkpoints)
-        mcfg = weights_config(objects[1])
+        if pipeline == "object-centric":
+            mcfg = weights_config(objects[1])
     return _Models(Path(adm_file), Path(amdm_file), text_adm, adm_cfg,
                    crop_spec_from_config(mcfg), int(mcfg["max_frames"]),
                    adm_view(adm_cfg) == "room", objects)
@@ -197,12 +199,13 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
             lap("region")
     understood = explain(room, instruction, chosen, how, opts, echo=progress)  # warns, too
 
-    if models.objects is not None:  # the object-centric pipeline: sensors around the target
+    if opts.pipeline == "object-centric" and chosen is None:
+        raise GenerateError("the object-centric pipeline needs a target object, and the "
+                            "text names none of this room's: name one, or pass object_id")
+    pipeline = "object-centric" if models.objects and chosen is not None else "affordance"
+    if pipeline == "object-centric":  # sensors around the target
         from jaxmotion.pipelines.object_centric import sample_in_room
 
-        if chosen is None:
-            raise GenerateError("the object-centric pipeline needs a target object, and the "
-                                "text names none of this room's: name one, or pass object_id")
         joints, crop = sample_in_room(room, centre, chosen, instruction.anchor_first, emb, opts,
                                       models.objects, root, aot_dir, versions,
                                       instruction.action)
@@ -228,7 +231,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         object_id=opts.object_id, target_id=chosen, seed=opts.seed, steps=opts.steps,
         guidance=(adm_w, amdm_w), consistency=opts.consistency, timings=times, grounding=how,
         excluded=tuple(excluded), adm_candidates=n_cand, adm_steps=opts.adm_steps,
-        motion_candidates=n_mot, understanding=understood,
+        motion_candidates=n_mot, understanding=understood, pipeline=pipeline,
         view_xyz=None if view_index is None else room.xyz[view_index].astype(np.float32),
         view_affordance=None if view_maps is None else np.asarray(view_maps, np.float32),
     )

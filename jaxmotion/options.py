@@ -50,8 +50,10 @@ MAX_MOTION_CANDIDATES = 16
 #: How the target is found without ``object_id``: ``auto`` (words, the scene graph, then the
 #: ADM), ``adm`` (the ADM among the named class), ``llm`` (a language model, two prompts).
 GROUNDINGS = ("auto", "adm", "llm")
-#: The generation pipelines (``pipeline`` option); the first is the default.
-PIPELINES = ("affordance", "object-centric")
+#: The generation pipelines (``pipeline`` option); the first is the default: ``auto`` runs the
+#: object-centric pipeline when the text's target object is found (no teleports, the action
+#: done on the target; docs/results.md) and the affordance pipeline otherwise.
+PIPELINES = ("auto", "affordance", "object-centric")
 
 
 def check_positive_int(name: str, value, lo: int = 1, hi: int | None = None) -> int:
@@ -118,9 +120,10 @@ class GenerateOptions:
         and the one reaching the target at the anchor frame is kept (1..16).
       checkpoints: None (shipped), a folder with ``adm.safetensors`` / ``amdm.safetensors``,
         or an ``(adm, amdm)`` pair of workdirs / files.
-      pipeline: ``affordance`` (ADM → AMDM, the default) or ``object-centric`` (sensors →
-        trajectory → completion, Cen et al. 2024; needs a target object, grounded as for the
-        affordance pipeline, whose ADM still chooses among same-class candidates).
+      pipeline: ``auto`` (the default: object-centric when the target object is known, else
+        affordance), ``affordance`` (ADM → AMDM) or ``object-centric`` (sensors → trajectory
+        → completion, Cen et al. 2024; needs a target object, grounded as for the affordance
+        pipeline, whose ADM still chooses among same-class candidates).
       object_checkpoints: the object-centric models: None (shipped), a folder with
         ``trajectory.safetensors`` / ``completion.safetensors``, or a ``(trajectory,
         completion)`` pair of workdirs / files.
@@ -140,7 +143,7 @@ class GenerateOptions:
     adm_candidates: int = DEFAULT_ADM_CANDIDATES
     motion_candidates: int = DEFAULT_MOTION_CANDIDATES
     checkpoints: str | Path | tuple | None = None
-    pipeline: str = "affordance"
+    pipeline: str = "auto"
     object_checkpoints: str | Path | tuple | None = None
     num_points: int | None = None
     fit: bool = True

@@ -55,6 +55,8 @@ class Generation:
         when the target was not known before sampling.
       motion_candidates: motions drawn per sample from its map (the one reaching the target
         kept); 1 when the target was not known.
+      pipeline: the pipeline that sampled the motions, ``affordance`` or ``object-centric``
+        (with ``auto``, the object-centric one when the target object was known).
       timings: seconds per stage.
     """
 
@@ -85,6 +87,7 @@ class Generation:
     adm_steps: int = 0
     motion_candidates: int = 1
     understanding: Any = None
+    pipeline: str = "affordance"
 
     @property
     def num_samples(self) -> int:

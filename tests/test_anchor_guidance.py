@@ -133,7 +133,15 @@ def test_refiner_shifts_the_whole_path_rigidly_to_put_the_anchor_on_the_seat():
         out, pts = _refine(action, x0, mean, std)
         metres = out * std + mean
         delta = metres - path
-        np.testing.assert_allclose(delta[..., 3:], 0.0, atol=1e-5)  # rotation kept
+        if action != LIE:
+            np.testing.assert_allclose(delta[..., 3:], 0.0, atol=1e-5)  # rotation kept
+        else:  # turned to lying at the anchor, kept beyond the taper
+            np.testing.assert_allclose(metres[:, frame, 3:], np.broadcast_to(
+                np.asarray(A.lying_rotation_6d(jnp.asarray(metres[0, frame, :2]),
+                                               jnp.asarray(pts[:26 * 26, :2]),
+                                               jnp.ones(26 * 26, bool))), (2, 6)), atol=1e-4)
+            far = np.abs(np.arange(t) - frame) >= A.HOLD + A.TAPER
+            np.testing.assert_allclose(delta[:, far, 3:], 0.0, atol=1e-5)
         # the pelvis rests on the seat (0.45 m) at the anchor, the hold moves as one, the taper
         # falls linearly and frames beyond it keep the model's height
         rest = A.LYING_PELVIS if action == LIE else A.SEATED_PELVIS
@@ -149,8 +157,11 @@ def test_refiner_shifts_the_whole_path_rigidly_to_put_the_anchor_on_the_seat():
         surface[: 26 * 26] = True
         for b in range(2):
             assert _brute_gap(metres[b, frame, :2], pts, surface) <= A.ON_SURFACE + 1e-4
-    out, _ = _refine(WALK, x0, mean, std)  # walk is not steered
-    np.testing.assert_array_equal(out, np.asarray(x0))
+    out, _ = _refine(WALK, x0, mean, std)  # a walk keeps its path and ends standing
+    metres = out * std + mean
+    np.testing.assert_allclose(metres[..., :2], path[..., :2], atol=1e-5)
+    np.testing.assert_allclose(metres[:, -1, 2], float(A.standing_height()), atol=1e-5)
+    np.testing.assert_allclose(metres[:, :5, 2], path[:, :5, 2], atol=1e-5)
     out, _ = _refine(SIT, x0, mean, std, strength=0.5)  # half the offset
     full, _ = _refine(SIT, x0, mean, std)
     np.testing.assert_allclose((out - np.asarray(x0)) * 2, full - np.asarray(x0), atol=1e-5)
@@ -170,7 +181,8 @@ def test_refiner_takes_a_traced_action_under_jit_and_vmap():
 
     out = np.asarray(run(jnp.asarray([WALK, SIT, STAND_UP, LIE, len(ACTION_CLASSES) - 1])))
     moved = np.abs(out - np.asarray(x0)[None]).max(axis=(1, 2, 3)) > 0.1
-    np.testing.assert_array_equal(moved, [False, True, True, True, False])
+    np.testing.assert_array_equal(moved, [True, True, True, True, False])  # walk: stands up
+    np.testing.assert_array_equal(out[-1], np.asarray(x0))  # the unknown action: untouched
 
 
 def test_surface_height_is_the_median_surface_height_under_the_pelvis():
@@ -216,3 +228,44 @@ def test_the_horizontal_offset_waits_for_the_final_prediction_the_height_does_no
                                        std, shift_until=None)
     np.testing.assert_allclose(np.asarray(everywhere(x0, jnp.full((1,), 500, jnp.int32))),
                                clean, atol=1e-5)
+
+
+def test_standing_height_matches_a_standing_skeleton():
+    from jaxmotion.geometry.skeleton import rest_joints
+
+    for betas in (None, np.linspace(-1.5, 1.5, 10)):
+        j = np.asarray(rest_joints(None if betas is None else jnp.asarray(betas, jnp.float32)))
+        leg = np.mean([np.linalg.norm(j[h] - j[k]) + np.linalg.norm(j[k] - j[a])
+                       for h, k, a in ((1, 4, 7), (2, 5, 8))])
+        got = float(A.standing_height(betas))
+        assert got == pytest.approx(A.ANKLE_HEIGHT + A.STANDING_LEGS * leg, abs=1e-5)
+        assert 0.8 < got < 1.1
+
+
+def test_walk_offset_brings_a_far_walk_to_the_target_and_leaves_a_near_one():
+    pts, _, _ = _chair()
+    xy, target = jnp.asarray(pts[:, :2]), jnp.ones(len(pts), bool)
+    for start in ([-1.0, 1.25], [1.25, 3.0], [2.5, -0.5]):
+        p = np.asarray(start, np.float32)
+        goal = p + np.asarray(A.walk_offset(jnp.asarray(p), xy, target))
+        gaps = np.linalg.norm(pts[:, :2] - goal, axis=-1)
+        assert gaps.min() == pytest.approx(A.WALK_STOP, abs=0.02)  # stops in front, not inside
+    for near in ([0.7, 1.25], [1.25, 1.8]):
+        np.testing.assert_array_equal(np.asarray(A.walk_offset(jnp.asarray(near), xy, target)),
+                                      0.0)
+    np.testing.assert_array_equal(
+        np.asarray(A.walk_offset(jnp.asarray([5.0, 5.0]), xy, jnp.zeros(len(pts), bool))), 0.0)
+
+
+def test_lying_rotation_lies_face_up_along_the_long_side():
+    from jaxmotion.geometry import rotation_6d_to_matrix
+
+    g = np.stack(np.meshgrid(np.linspace(0, 2.0, 41), np.linspace(0, 0.9, 19)), -1).reshape(-1, 2)
+    for pelvis, head in (([0.6, 0.45], +1.0), ([1.5, 0.45], -1.0)):  # a bed 2 m along x
+        r = np.asarray(rotation_6d_to_matrix(A.lying_rotation_6d(
+            jnp.asarray(pelvis, jnp.float32), jnp.asarray(g, jnp.float32),
+            jnp.ones(len(g), bool))))
+        np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-5)
+        assert np.linalg.det(r) == pytest.approx(1.0, abs=1e-5)
+        np.testing.assert_allclose(r[:, 1], [head, 0, 0], atol=1e-4)  # spine along the bed,
+        np.testing.assert_allclose(r[:, 2], [0, 0, 1], atol=1e-4)  # towards its longer part

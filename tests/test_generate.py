@@ -15,7 +15,7 @@ import jaxmotion.scene.demo
 from jaxmotion.errors import GenerateError
 from jaxmotion.pipelines.checkpoints import default_checkpoints
 
-FAST = dict(steps=2, adm_steps=2, fit_iters=5)
+FAST = dict(steps=2, adm_steps=2, fit_iters=5, pipeline="affordance")  # the tiny AMDM
 
 
 @pytest.fixture(scope="module")
@@ -237,6 +237,7 @@ def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
     assert not (tmp_path / "x").exists()
     out = tmp_path / "ok"
     assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
+                 "--pipeline", "affordance",
                  "--out", str(out), "--checkpoints", *ckpt]) == 0
     captured = capsys.readouterr()
     stdout = captured.out.strip().splitlines()
@@ -250,10 +251,12 @@ def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
 
         np.testing.assert_allclose(f["guidance"], DEFAULT_GUIDANCE)
     assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
+                 "--pipeline", "affordance",
                  "--guidance", "2,1", "--out", str(tmp_path / "g"), "--checkpoints", *ckpt]) == 0
     with np.load(tmp_path / "g" / "motion.npz") as f:
         np.testing.assert_allclose(f["guidance"], [2.0, 1.0])
     assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
+                 "--pipeline", "affordance",
                  "--consistency", "0", "--adm-candidates", "2", "--adm-steps", "3",
                  "--out", str(tmp_path / "c"), "--checkpoints", *ckpt]) == 0
     line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
@@ -409,3 +412,20 @@ def test_text_only_adm_when_no_target_is_known(ckpt, tmp_path, monkeypatch):
     r = jaxmotion.generate("demo", "sit on the chair next to the table", checkpoints=folder,
                            fit=False, aot=False, **FAST)
     assert r.target_id is not None and used == ["adm.safetensors"]
+
+
+def test_the_default_pipeline_is_object_centric_when_the_target_is_known(ckpt, tmp_path):
+    """``pipeline="auto"`` (the default): the object-centric models sample when the text's
+    target is found, the affordance pipeline when no target is (here a text with no object)."""
+    from jaxmotion.options import GenerateOptions
+
+    assert GenerateOptions().pipeline == "auto"
+    kw = dict(checkpoints=ckpt, steps=2, adm_steps=2, fit=False, aot=False)
+    r = jaxmotion.generate("demo", "sit on the chair next to the table", **kw)
+    assert r.pipeline == "object-centric" and r.target_id is not None
+    assert json.loads(jaxmotion.export.summary(r))["pipeline"] == "object-centric"
+    assert np.isfinite(r.joints).all() and r.joints.shape == (1, 120, 22, 3)
+    r = jaxmotion.generate("demo", "dance around for a while", **kw)
+    assert r.pipeline == "affordance" and r.target_id is None
+    with pytest.raises(GenerateError, match="needs a target object"):
+        jaxmotion.generate("demo", "dance around for a while", pipeline="object-centric", **kw)

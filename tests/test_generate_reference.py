@@ -46,7 +46,7 @@ def test_demo_room_is_unchanged():
     import jaxmotion
 
     r = jaxmotion.generate("demo", "sit on the chair next to the table", samples=2, seed=3,
-                           fit=False)
+                           fit=False, pipeline="affordance")
     np.testing.assert_array_equal(r.joints, np.load(REFERENCE)["demo"])
 
 
@@ -56,7 +56,8 @@ def test_synthetic_room_is_unchanged(room, name):
     import jaxmotion
 
     text, object_id, seed = CASES[name]
-    r = jaxmotion.generate(room, text, samples=1, seed=seed, fit=False, object_id=object_id)
+    r = jaxmotion.generate(room, text, samples=1, seed=seed, fit=False, object_id=object_id,
+                           pipeline="affordance")
     np.testing.assert_array_equal(r.joints, np.load(REFERENCE)[name])
 
 
@@ -66,12 +67,12 @@ def record() -> None:
     from jaxmotion.scene.rooms import room_to_scene, sample_room
 
     out = {"demo": jaxmotion.generate("demo", "sit on the chair next to the table", samples=2,
-                                      seed=3, fit=False).joints}
+                                      seed=3, fit=False, pipeline="affordance").joints}
     scene = room_to_scene(sample_room(ROOM_SEED), 20000, np.random.default_rng(ROOM_SEED))
     scene = dataclasses.replace(scene, name=f"room{ROOM_SEED}")
     for name, (text, object_id, seed) in CASES.items():
         out[name] = jaxmotion.generate(scene, text, samples=1, seed=seed, fit=False,
-                                       object_id=object_id).joints
+                                       object_id=object_id, pipeline="affordance").joints
         print(name, out[name].shape, flush=True)
     np.savez_compressed(REFERENCE, **out)
     print(f"wrote {REFERENCE}")

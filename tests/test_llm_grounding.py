@@ -229,7 +229,7 @@ def test_generate_with_the_language_model(tiny_runs, tmp_path, monkeypatch):
         monkeypatch.setenv(ENV_MODEL, "tiny-model")
         res = jaxmotion.generate("demo", "perch on the stool by the cupboard", grounding="llm",
                                  checkpoints=(str(root / "adm"), str(root / "amdm")),
-                                 steps=2, adm_steps=2, fit_iters=5)
+                                 steps=2, adm_steps=2, fit_iters=5, pipeline="affordance")
         assert len(srv.requests) == 2  # asked once, not again when explaining
     assert res.target_id == stools[0] and res.grounding == "llm"
     assert res.excluded == tuple(stools[1:])  # the target is known: its class mates left out

@@ -252,3 +252,35 @@ def test_summary():
     assert s["motions"] == 2 and s["pelvis_speed_p99"] == pytest.approx(0.99, rel=1e-3)
     empty = summarize_plausibility({**per, "valid_frames": np.zeros(4, int)})
     assert empty["motions"] == 0 and np.isnan(empty["teleport_rate"])
+
+
+def test_select_motion_prefers_plausible_then_unhurried_then_closest():
+    """Best of M: a teleporting candidate loses to a smooth one, a brisk one (pelvis faster than
+    ``brisk_pelvis_speed``) to an unhurried one, and among equals the one nearest the target."""
+    from jaxmotion.pipelines.affordance import select_motion
+
+    t = 30
+    base = np.zeros((t, 22, 3), np.float32)
+    base[:, :, 2] = np.linspace(0.0, 1.6, 22)[None]  # a standing column of joints
+
+    def walk(speed, end_x, jump=False):
+        x = end_x - speed * (t - 1 - np.arange(t)) / 30.0
+        m = base.copy()
+        m[:, :, 0] += x[:, None]
+        if jump:
+            m[15:, :, 0] += 0.5  # one 0.5 m jump at frame 15: 15 m/s
+        return m
+
+    points = np.array([[1.0, 0.0, 0.5], [9.0, 9.0, 0.0]], np.float32)  # the target, something else
+    target = np.array([True, False])
+    mask = np.ones(t, bool)
+    near_fast = walk(2.5, 0.95)  # ends 5 cm from the target, but at 2.5 m/s
+    far_slow = walk(1.0, 0.7)  # ends 30 cm away at 1 m/s
+    near_jump = walk(1.0, 0.45, jump=True)  # ends 5 cm away (after the jump), teleports
+    cands = np.stack([near_jump, near_fast, far_slow])[None]
+    args = (points[None], target[None], mask[None])
+    pick = lambda c, **kw: np.asarray(select_motion(jnp.asarray(c), *args, **kw))[0]  # noqa: E731
+    np.testing.assert_array_equal(pick(cands), near_fast)  # no envelope: the nearest smooth one
+    np.testing.assert_array_equal(pick(cands, brisk_pelvis_speed=2.0), far_slow)
+    np.testing.assert_array_equal(pick(cands[:, :2], brisk_pelvis_speed=2.0), near_fast)
+    np.testing.assert_array_equal(pick(cands[:, :1], brisk_pelvis_speed=2.0), near_jump)

@@ -230,7 +230,7 @@ def test_room_view_generate(room_runs, tmp_path, monkeypatch):
 
     root, _, work, _, _ = room_runs
     monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "xla"))
-    kw = dict(samples=2, seed=3, steps=2, adm_steps=2, fit=False,
+    kw = dict(samples=2, seed=3, steps=2, adm_steps=2, fit=False, pipeline="affordance",
               checkpoints=(str(work), str(root / "amdm")))
     res = jaxmotion.generate("demo", "sit on the chair next to the table", **kw)
     assert res.joints.shape[0] == 2 and np.isfinite(res.joints).all()

@@ -234,8 +234,8 @@ def test_word_level_generate_caches_the_words(word_runs, tmp_path, monkeypatch):
 
     root, _, _ = word_runs
     monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "xla"))
-    kw = dict(samples=2, seed=1, steps=2, fit=False, checkpoints=(str(root / "adm"),
-                                                                  str(root / "amdm")))
+    kw = dict(samples=2, seed=1, steps=2, fit=False, pipeline="affordance",
+              checkpoints=(str(root / "adm"), str(root / "amdm")))
     first = jaxmotion.generate("demo", "sit on the chair next to the table", **kw)
     assert first.joints.shape[0] == 2 and np.isfinite(first.joints).all()
     assert list((tmp_path / "xla").glob("text-embeddings-tokens/tok-*.npz"))

@@ -74,7 +74,7 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
                  guidance=np.asarray(res.guidance, np.float32),
                  consistency=np.float32(res.consistency),
                  scene_name=np.array(res.scene.name),
-                 grounding=np.array(res.grounding),
+                 grounding=np.array(res.grounding), pipeline=np.array(res.pipeline),
                  excluded=np.asarray(res.excluded, np.int64),
                  adm_candidates=np.int64(res.adm_candidates),
                  adm_steps=np.int64(res.adm_steps),
@@ -160,7 +160,8 @@ def summary(res) -> str:
     :meth:`jaxmotion.grounding.report.Understanding.as_json`) when the result has it."""
     understood = res.understanding.as_json() if res.understanding is not None else {}
     return json.dumps({"text": res.text, "samples": res.num_samples, "frames": int(res.mask.sum()),
-                       **understood, "target_id": res.target_id, "grounding": res.grounding,
+                       **understood, "pipeline": res.pipeline, "target_id": res.target_id,
+                       "grounding": res.grounding,
                        "excluded": list(res.excluded), "adm_candidates": res.adm_candidates,
                        "adm_steps": res.adm_steps,
                        "motion_candidates": res.motion_candidates, "steps": res.steps,

@@ -443,15 +443,17 @@ class AffordancePipeline:
         return jax.vmap(carry_field)(points, view_points, view_maps)
 
 
-def select_motion(motions, points, target, mask, anchor_first=None):
+def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis_speed=None):
     """Of the candidates ``motions [B, M, T, 22, 3]`` of each example, the one whose body
     comes closest to ``target [B, N]`` (points of the target object among ``points
     [B, N, 3]``, same frame) at the anchor frame: the first valid frame of ``mask [B, T]``
     where ``anchor_first [B]`` (getting up from the object; None: all False), else the last.
     Closeness is the smallest joint-to-target-point distance. A motion that teleports
     (:func:`jaxmotion.eval.plausibility.teleports`) is never kept while one of its example's
-    candidates does not; an example with no target point keeps its first plausible
-    candidate. Returns ``[B, T, 22, 3]``; every pipeline's best-of-M uses it."""
+    candidates does not; with ``brisk_pelvis_speed`` (m/s), nor is one whose pelvis moves
+    faster than that while another's does not (a walk at a run, beyond the dataset's motions).
+    An example with no target point keeps its first plausible candidate. Returns
+    ``[B, T, 22, 3]``; every pipeline's best-of-M uses it."""
     from jaxmotion.eval.plausibility import teleports
 
     mask = jnp.asarray(mask, bool)
@@ -467,8 +469,14 @@ def select_motion(motions, points, target, mask, anchor_first=None):
     t = jnp.asarray(target, bool)[:, None, :, None]  # [B,1,N,1]
     score = jnp.where(t, d, jnp.inf).min(axis=(2, 3))  # [B,C]
     score = jnp.where(jnp.isfinite(score), score, 0.0)  # no target point: all tie
-    smooth = ~jumps | jnp.all(jumps, axis=1, keepdims=True)  # all jump: all compete
-    best = jnp.argmin(jnp.where(smooth, score, jnp.inf), axis=1)  # ties: the first
+    tier = jumps.astype(jnp.int32) * 2  # 0 plausible, 1 brisk, 2 teleports
+    if brisk_pelvis_speed is not None:
+        brisk = teleports(motions.reshape(b * m, *motions.shape[2:]),
+                          jnp.repeat(mask, m, axis=0),
+                          teleport_pelvis_speed=brisk_pelvis_speed).reshape(b, m)
+        tier = jnp.maximum(tier, brisk.astype(jnp.int32))
+    best_tier = jnp.min(tier, axis=1, keepdims=True)  # only the best tier's candidates compete
+    best = jnp.argmin(jnp.where(tier == best_tier, score, jnp.inf), axis=1)  # ties: the first
     return jnp.take_along_axis(motions, best[:, None, None, None, None], axis=1)[:, 0]
 
 

@@ -136,10 +136,10 @@ def test_refiner_shifts_the_whole_path_rigidly_to_put_the_anchor_on_the_seat():
         if action != LIE:
             np.testing.assert_allclose(delta[..., 3:], 0.0, atol=1e-5)  # rotation kept
         else:  # turned to lying at the anchor, kept beyond the taper
-            np.testing.assert_allclose(metres[:, frame, 3:], np.broadcast_to(
-                np.asarray(A.lying_rotation_6d(jnp.asarray(metres[0, frame, :2]),
-                                               jnp.asarray(pts[:26 * 26, :2]),
-                                               jnp.ones(26 * 26, bool))), (2, 6)), atol=1e-4)
+            for k in range(2):
+                want = A.lying_rotation_6d(jnp.asarray(path[k, frame, 3:]),
+                                           jnp.asarray(pts[:26 * 26, :2]), jnp.ones(26 * 26, bool))
+                np.testing.assert_allclose(metres[k, frame, 3:], np.asarray(want), atol=1e-4)
             far = np.abs(np.arange(t) - frame) >= A.HOLD + A.TAPER
             np.testing.assert_allclose(delta[:, far, 3:], 0.0, atol=1e-5)
         # the pelvis rests on the seat (0.45 m) at the anchor, the hold moves as one, the taper
@@ -260,12 +260,18 @@ def test_walk_offset_brings_a_far_walk_to_the_target_and_leaves_a_near_one():
 def test_lying_rotation_lies_face_up_along_the_long_side():
     from jaxmotion.geometry import rotation_6d_to_matrix
 
+    from jaxmotion.geometry import matrix_to_rotation_6d
+
     g = np.stack(np.meshgrid(np.linspace(0, 2.0, 41), np.linspace(0, 0.9, 19)), -1).reshape(-1, 2)
-    for pelvis, head in (([0.6, 0.45], +1.0), ([1.5, 0.45], -1.0)):  # a bed 2 m along x
+    for facing, head in (([1.0, 0.1], -1.0), ([-1.0, 0.1], 1.0)):  # a bed 2 m along x
+        # standing (body y up) and facing along +-x: lying back puts the head behind
+        fwd = np.array([*facing, 0.0]) / np.linalg.norm(facing)
+        up = np.array([0.0, 0.0, 1.0])
+        now = np.stack([np.cross(up, fwd), up, fwd], axis=-1)
         r = np.asarray(rotation_6d_to_matrix(A.lying_rotation_6d(
-            jnp.asarray(pelvis, jnp.float32), jnp.asarray(g, jnp.float32),
+            matrix_to_rotation_6d(jnp.asarray(now, jnp.float32)), jnp.asarray(g, jnp.float32),
             jnp.ones(len(g), bool))))
         np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-5)
         assert np.linalg.det(r) == pytest.approx(1.0, abs=1e-5)
-        np.testing.assert_allclose(r[:, 1], [head, 0, 0], atol=1e-4)  # spine along the bed,
-        np.testing.assert_allclose(r[:, 2], [0, 0, 1], atol=1e-4)  # towards its longer part
+        np.testing.assert_allclose(r[:, 1], [head, 0, 0], atol=1e-4)  # spine along the bed
+        np.testing.assert_allclose(r[:, 2], [0, 0, 1], atol=1e-4)  # face up

@@ -35,7 +35,7 @@ import time
 #: program for its shape, e.g. the room's tiles: once per cache): the target found by class,
 #: the ADM among two candidates, no object of the room named (tiles), a target told by class.
 NEW_TEXTS = (
-    ("take a seat on the chair at the table", "sit down on the stool", "lie down on the sofa",
+    ("take a seat on the chair at the table", "sit down on the stool", "wander around for a bit",
      "go and stand by the table"),
     ("have a seat on the chair", "walk over to the stool", "dance around the room",
      "walk up to the table"),

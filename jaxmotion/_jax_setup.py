@@ -37,11 +37,14 @@ def enable_compilation_cache(path: str | None = None) -> Path:
     compilation. Returns jaxmotion's cache root (default ``~/.cache/jaxmotion/xla``, or
     ``$JAXMOTION_CACHE``); XLA's executables go to ``executables-<host_key()>/`` under it.
     ``JAXMOTION_CACHE=off`` runs without any cache on disk (the root is then a folder in the
-    system's temporary directory, removed at exit)."""
+    system's temporary directory, removed at exit); ``JAXMOTION_XLA_CACHE=off`` keeps
+    jaxmotion's own caches (traced programs, text embeddings) but not XLA's executables (the
+    test suite runs so: XLA's CPU runtime has crashed deserialising a large executable written
+    earlier in the same process)."""
     import jax
 
     setting = path or os.environ.get("JAXMOTION_CACHE", "")
-    if setting.strip().lower() in ("off", "0", "none", "false"):
+    if setting.strip().lower() in _OFF:
         return _scratch_root()
     cache = Path(setting or Path.home() / ".cache/jaxmotion/xla")
     executables = cache / f"executables-{host_key()}"
@@ -49,10 +52,15 @@ def enable_compilation_cache(path: str | None = None) -> Path:
         executables.mkdir(parents=True, exist_ok=True)
     except OSError:
         return cache  # read-only home: run without the cache
+    if os.environ.get("JAXMOTION_XLA_CACHE", "").strip().lower() in _OFF:
+        return cache
     jax.config.update("jax_compilation_cache_dir", str(executables))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     return cache
+
+
+_OFF = ("off", "0", "none", "false")
 
 
 @functools.lru_cache(maxsize=1)

@@ -18,6 +18,9 @@ else:
     _cache = tempfile.mkdtemp(prefix="jaxmotion-test-cache-")
     atexit.register(shutil.rmtree, _cache, ignore_errors=True)
     os.environ["JAXMOTION_CACHE"] = _cache
+# and never through XLA's persistent executable cache: its CPU runtime has aborted / segfaulted
+# deserialising a large executable (the samplers' scan) written earlier in the same process
+os.environ.setdefault("JAXMOTION_XLA_CACHE", "off")
 
 from hypothesis import HealthCheck, settings  # noqa: E402
 

@@ -13,7 +13,7 @@ SIT, STAND_UP, LIE, WALK = (ACTION_CLASSES.index(a) for a in ("sit", "stand_up",
 
 def _chair(seat_z=0.45, x0=1.0, y0=1.0, size=0.5, step=0.02):
     """A square seat (normals up) with a backrest face (normals along +x) and legs to the floor."""
-    n = int(round(size / step)) + 1
+    n = round(size / step) + 1
     g = np.stack(np.meshgrid(np.linspace(x0, x0 + size, n), np.linspace(y0, y0 + size, n)),
                  -1).reshape(-1, 2)
     seat = np.c_[g, np.full(len(g), seat_z)]
@@ -72,7 +72,7 @@ def test_support_surface_is_the_seat_not_the_backrest_or_the_legs():
 
 @pytest.mark.parametrize("start", [(0.3, 1.25), (1.25, 0.2), (2.4, 2.3), (0.9, 0.95)])
 def test_anchor_offset_lands_inside_the_seat_from_any_side(start):
-    pts, nrm, n_seat = _chair()
+    pts, _, n_seat = _chair()
     surface = np.zeros(len(pts), bool)
     surface[:n_seat] = True
     p = np.asarray(start, np.float32)
@@ -203,7 +203,7 @@ def test_surface_height_is_the_median_surface_height_under_the_pelvis():
 
 
 def test_an_armrest_beside_the_pelvis_does_not_raise_the_seat():
-    pts, nrm, n_seat = _chair()
+    pts, nrm, _ = _chair()
     arm = np.c_[np.linspace(1.0, 1.5, 30), np.full(30, 1.52), np.full(30, 0.65)]  # armrest top
     pts = np.r_[pts, arm].astype(np.float32)
     nrm = np.r_[nrm, np.tile([0, 0, 1.0], (30, 1))].astype(np.float32)
@@ -258,9 +258,7 @@ def test_walk_offset_brings_a_far_walk_to_the_target_and_leaves_a_near_one():
 
 
 def test_lying_rotation_lies_face_up_along_the_long_side():
-    from jaxmotion.geometry import rotation_6d_to_matrix
-
-    from jaxmotion.geometry import matrix_to_rotation_6d
+    from jaxmotion.geometry import matrix_to_rotation_6d, rotation_6d_to_matrix
 
     g = np.stack(np.meshgrid(np.linspace(0, 2.0, 41), np.linspace(0, 0.9, 19)), -1).reshape(-1, 2)
     for facing, head in (([1.0, 0.1], -1.0), ([-1.0, 0.1], 1.0)):  # a bed 2 m along x

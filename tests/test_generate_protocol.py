@@ -301,7 +301,7 @@ def _demo_chair(root):
     scene = demo_scene()
     chair = next(o for o in scene.objects if o["category"] == "chair")
     fast = dict(checkpoints=(str(root / "adm"), str(root / "amdm")), fit=False, steps=2,
-                adm_steps=2, seed=1)
+                adm_steps=2, seed=1, pipeline="affordance")  # ADM maps and AMDM candidates
     return scene, chair, fast
 
 

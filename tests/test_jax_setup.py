@@ -14,6 +14,7 @@ def test_host_key_is_stable_and_short():
 
 def test_executables_are_kept_per_host(tmp_path, monkeypatch):
     monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "c"))
+    monkeypatch.setenv("JAXMOTION_XLA_CACHE", "off")  # XLA's cache stays off in the suite
     root = S.enable_compilation_cache()
     assert root == tmp_path / "c"
     assert (root / f"executables-{S.host_key()}").is_dir()
@@ -26,3 +27,11 @@ def test_cache_off_writes_nothing_to_the_named_place(tmp_path, monkeypatch):
     assert root.is_dir() and os.access(root, os.W_OK)
     assert jax.config.jax_compilation_cache_dir == before  # XLA's cache left as it was
     assert S.enable_compilation_cache() == root  # one scratch folder per process
+
+
+def test_xla_cache_off_keeps_jaxmotions_own_root(tmp_path, monkeypatch):
+    before = jax.config.jax_compilation_cache_dir
+    monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "own"))
+    monkeypatch.setenv("JAXMOTION_XLA_CACHE", "off")
+    assert S.enable_compilation_cache() == tmp_path / "own"
+    assert jax.config.jax_compilation_cache_dir == before

@@ -279,7 +279,7 @@ def test_select_motion_prefers_plausible_then_unhurried_then_closest():
     near_jump = walk(1.0, 0.45, jump=True)  # ends 5 cm away (after the jump), teleports
     cands = np.stack([near_jump, near_fast, far_slow])[None]
     args = (points[None], target[None], mask[None])
-    pick = lambda c, **kw: np.asarray(select_motion(jnp.asarray(c), *args, **kw))[0]  # noqa: E731
+    pick = lambda c, **kw: np.asarray(select_motion(jnp.asarray(c), *args, **kw))[0]
     np.testing.assert_array_equal(pick(cands), near_fast)  # no envelope: the nearest smooth one
     np.testing.assert_array_equal(pick(cands, brisk_pelvis_speed=2.0), far_slow)
     np.testing.assert_array_equal(pick(cands[:, :2], brisk_pelvis_speed=2.0), near_fast)

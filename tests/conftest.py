@@ -85,3 +85,17 @@ def fine_tune_adm(tiny_runs, tmp_path_factory):
         return root, out["data"], work, cfg, train(cfg, get_task(cfg))
 
     return run
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Free each test module's compiled programs when it ends. XLA's CPU runtime maps memory
+    for every executable; over the whole suite in one process the mappings neared the kernel's
+    limit (vm.max_map_count, 65,530) and XLA aborted in a late compile or deserialisation."""
+    yield
+    import gc
+
+    import jax
+
+    jax.clear_caches()
+    gc.collect()

@@ -265,9 +265,9 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
             ok = jnp.ones_like(t, bool) if limit is None else t <= limit
             return ok[:, None].astype(jnp.float32)
 
-        gate = on * acts(until)
-        gate_xy = gate if shift_until is None else gate * acts(shift_until)
-        walk_xy = walk * acts(until) * (1.0 if shift_until is None else acts(shift_until))
+        now = acts(until)  # the height and the turn act now
+        now_xy = now if shift_until is None else now * acts(shift_until)  # the path moves now
+        gate, gate_xy, walk_xy = on * now, on * now_xy, walk * now_xy
         pelvis = x0_hat[:, frame, :3] * std[:3] + mean[:3]  # [B, 3] metres
         offset = jax.vmap(anchor_offset, in_axes=(0, None, None))(pelvis[:, :2], points[:, :2],
                                                                    surface)
@@ -279,12 +279,12 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
         offset = gate_xy * offset + walk_xy * stop
         height = jax.vmap(surface_height, in_axes=(0, None, None))(xy, points, surface)
         lift = jnp.where(jnp.isnan(height), 0.0, height + rest - pelvis[:, 2])  # [B]
-        lift = gate[:, 0] * lift + walk * acts(until)[:, 0] * (stand - pelvis[:, 2])
+        lift = gate[:, 0] * lift + walk * now[:, 0] * (stand - pelvis[:, 2])
         # lie: the orientation turns to lying along the surface over the same frames
         orient = x0_hat[..., 3:9] * std[3:9] + mean[3:9]  # [B, T, 6]
         lie6 = jax.vmap(lying_rotation_6d, in_axes=(0, None, None))(orient[:, frame],
                                                                     points[:, :2], surface)
-        blend = (lying * acts(until))[:, :, None] * weight[None, :, None]  # [B, T, 1]
+        blend = (lying * now)[:, :, None] * weight[None, :, None]  # [B, T, 1]
         turned = ((1.0 - blend) * orient + blend * lie6[:, None, :] - mean[3:9]) / std[3:9]
         x0_hat = x0_hat.at[..., 3:9].set(turned)
         move = jnp.concatenate(

@@ -11,13 +11,22 @@ Both take the motions in metres, ``[B, T, J, 3]`` (de-normalise the model's feat
 for z-scored absolute positions, ``x * std`` — the mean cancels in differences), the frame
 mask ``[B, T]`` and ``fps``; a velocity counts when both of its frames are valid, an
 acceleration when all three are.
+
+For models that write joint rotations (the object-centric completion model), the motions are
+the forward kinematics of the prediction: :func:`joint_position_loss` compares the joints
+themselves (a floating or sunken foot is a position error a rotation loss weighs lightly), and
+:func:`foot_contact_loss` is MDM's foot-contact term: where the data's foot stands still, the
+prediction's foot must too (a sliding planted foot is foot skating).
 """
 
 from __future__ import annotations
 
 import jax.numpy as jnp
 
-__all__ = ["acceleration_loss", "velocity_loss"]
+__all__ = ["acceleration_loss", "foot_contact_loss", "joint_position_loss", "velocity_loss"]
+
+#: Foot joints of the contact term: left/right ankle and left/right foot (SMPL-X indices).
+FOOT_JOINTS: tuple[int, ...] = (7, 8, 10, 11)
 
 
 def _pairs(mask, lag: int):
@@ -52,3 +61,27 @@ def acceleration_loss(pred, target, mask, fps: float, weights=None):
     def acc(x):
         return (x[:, 2:] - 2.0 * x[:, 1:-1] + x[:, :-2]) * fps * fps
     return _masked_mse(acc(pred) - acc(target), _pairs(mask, 2), weights)
+
+
+def joint_position_loss(pred, target, mask, weights=None):
+    """Mean squared joint position error (m²) over the valid frames, ``pred``, ``target``
+    ``[B,T,J,3]`` in metres, ``mask [B,T]``, ``weights [B]`` as :func:`velocity_loss`."""
+    return _masked_mse(pred - target, jnp.asarray(mask, jnp.float32), weights)
+
+
+def foot_contact_loss(pred, target, mask, fps: float, weights=None, *,
+                      foot_joints=FOOT_JOINTS, still_speed: float = 0.2):
+    """MDM's foot-contact term: mean squared speed (m/s)² of the prediction's foot joints over
+    the frame pairs where the target's foot joint is still (speed below ``still_speed`` m/s,
+    both frames valid). The mean is over the still (foot, pair) entries; none gives 0.
+
+    ``pred``, ``target`` ``[B,T,J,3]`` in metres, ``mask [B,T]``; ``weights [B]`` as
+    :func:`velocity_loss`."""
+    idx = jnp.asarray(foot_joints, jnp.int32)
+    p, t = pred[:, :, idx], target[:, :, idx]
+    v_p = (p[:, 1:] - p[:, :-1]) * fps  # [B, T-1, F, 3]
+    v_t = (t[:, 1:] - t[:, :-1]) * fps
+    still = (jnp.linalg.norm(v_t, axis=-1) < still_speed) * _pairs(mask, 1)[..., None]
+    scale = 1.0 if weights is None else jnp.asarray(weights, p.dtype)[:, None, None]
+    sq = jnp.sum(v_p * v_p, axis=-1)
+    return jnp.sum(sq * still * scale) / jnp.maximum(jnp.sum(still), 1.0)

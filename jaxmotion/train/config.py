@@ -120,6 +120,14 @@ class ObjectCentricTrainConfig(TrainConfig):
         ``model.action_token`` may be switched on (its embedding starts at 0).
       action_unknown_prob: with ``model.action_token``, the share of training examples whose
         action is given as unknown (as an instruction the grounding stage cannot read).
+      joint_weight, foot_contact_weight, joint_velocity_weight: completion model only; weights
+        of geometric terms on the forward kinematics of the predicted clean motion
+        (:mod:`jaxmotion.diffusion.geometric_losses`): joint positions (m²), MDM's foot
+        contact (the predicted feet's speed where the data's feet stand still, (m/s)²) and
+        joint velocities ((m/s)²). 0 (the default) leaves a term out.
+      geometric_weighting: ``signal`` scales each example's geometric terms by ᾱ_t of its
+        diffusion step (a prediction from pure noise is not held to the data's fine motion);
+        ``uniform`` weighs every step the same.
     """
 
     loss: Literal["l1", "mse"] = "l1"
@@ -130,6 +138,10 @@ class ObjectCentricTrainConfig(TrainConfig):
     pretrain: bool = False
     init_from: str = ""
     action_unknown_prob: float = 0.1
+    joint_weight: float = 0.0
+    foot_contact_weight: float = 0.0
+    joint_velocity_weight: float = 0.0
+    geometric_weighting: Literal["signal", "uniform"] = "signal"
     diffusion: DiffusionConfig = dataclasses.field(
         default_factory=lambda: DiffusionConfig(schedule="cosine", steps=200, cond_drop_prob=0.1))
 
@@ -143,6 +155,17 @@ class ObjectCentricTrainConfig(TrainConfig):
         if self.sensor_points < 0 or self.stats_batches < 1:
             raise ValueError(f"need sensor_points >= 0 and stats_batches >= 1, got "
                              f"{self.sensor_points}, {self.stats_batches}")
+        geo = {"joint_weight": self.joint_weight, "foot_contact_weight": self.foot_contact_weight,
+               "joint_velocity_weight": self.joint_velocity_weight}
+        if any(w < 0 for w in geo.values()):
+            raise ValueError(f"geometric weights must be >= 0, got {geo}")
+        if any(geo.values()) and self.task != "completion":
+            raise ValueError(f"{', '.join(k for k, w in geo.items() if w)} weigh(s) the body's "
+                             f"joints, which only the completion model writes (task="
+                             f"{self.task!r}); leave them at 0")
+        if self.geometric_weighting not in ("signal", "uniform"):
+            raise ValueError("geometric_weighting must be 'signal' or 'uniform', got "
+                             f"{self.geometric_weighting!r}")
 
 
 def object_centric_presets(paper_batch: int) -> dict[str, dict]:

@@ -71,6 +71,9 @@ class ObjectCentricTask(DataTask):
         self.pretrain = bool(cfg.pretrain)
         self.sensor_points = int(cfg.sensor_points)
         self.action_unknown = float(cfg.action_unknown_prob)
+        self.geometric = {name: float(getattr(cfg, f"{name}_weight", 0.0))
+                          for name in ("joint", "foot_contact", "joint_velocity")}
+        self.geometric_weighting = str(getattr(cfg, "geometric_weighting", "signal"))
         return ObjectCentricNet(net)
 
     def _init_from(self, net, cfg):
@@ -168,6 +171,41 @@ class ObjectCentricTask(DataTask):
         def denoise(x, t, c):
             return net(x, t, c, deterministic=not train)
 
-        loss = diffusion_loss(k_loss, denoise, self.schedule, x0, cond, mask, cond_drop_prob=0.0,
-                              loss_type=self.loss_type, feature_weights=self.weights)
-        return loss, {}
+        loss, aux = diffusion_loss(k_loss, denoise, self.schedule, x0, cond, mask,
+                                   cond_drop_prob=0.0, loss_type=self.loss_type,
+                                   feature_weights=self.weights, return_aux=True)
+        if not any(self.geometric.values()):
+            return loss, {}
+        return self._geometric(loss, aux, x0, mask, batch["betas"])
+
+    def _geometric(self, loss, aux, x0, mask, betas):
+        """The x0 loss plus the weighted geometric terms on the forward kinematics of the
+        predicted and the true clean motion (both through the same skeleton of ``betas``).
+        The prediction's body rides on the true trajectory: the sampler replaces the
+        trajectory features by the given trajectory (inpainting), so only the body's joint
+        rotations of ``x0_hat`` reach a motion."""
+        from jaxmotion.motion.representation import TRAJECTORY_DIM
+
+        from jaxmotion.constants import SCENE_FPS
+        from jaxmotion.diffusion.geometric_losses import (foot_contact_loss,
+                                                          joint_position_loss, velocity_loss)
+        from jaxmotion.motion.representation import motion_to_joints
+
+        def joints(x):  # frames past the end hold the mean (zeros are no rotation)
+            return motion_to_joints(jnp.where(mask[..., None], x * self.std + self.mean,
+                                              self.mean), betas)
+
+        x0_hat = jnp.concatenate([x0[..., :TRAJECTORY_DIM], aux["x0_hat"][..., TRAJECTORY_DIM:]],
+                                 axis=-1)
+        pred, true = joints(x0_hat), jax.lax.stop_gradient(joints(x0))
+        w = (self.schedule.alphas_cumprod[aux["t"]] if self.geometric_weighting == "signal"
+             else None)
+        terms = {"x0": loss}
+        if self.geometric["joint"]:
+            terms["joint"] = joint_position_loss(pred, true, mask, w)
+        if self.geometric["foot_contact"]:
+            terms["foot_contact"] = foot_contact_loss(pred, true, mask, SCENE_FPS, w)
+        if self.geometric["joint_velocity"]:
+            terms["joint_velocity"] = velocity_loss(pred, true, mask, SCENE_FPS, w)
+        total = loss + sum(self.geometric[k] * v for k, v in terms.items() if k != "x0")
+        return total, terms

@@ -8,6 +8,9 @@
 #     the image lacks (trimesh, jaxopt, tensorboardX, mannequin-x, nanomanifold);
 #   - the MiniLM weights as float16 (44 MB; the float32 ones are 87 MB): token states differ by
 #     ~1e-3 relative, below the float16 rounding of the token cache (JAXMOTION_MINILM_DIR);
+#     of the word-embedding matrix only the rows DATA_DIR's texts use travel (22 MB in all;
+#     scripts/device/minilm_vocab.py, put back by train.sh), so the device encodes only the
+#     texts of a dataset built as DATA_DIR was;
 #   - the segmentation backbone's weights and the 2,000-room set's stats.npz (the normalisation
 #     the shipped models use).
 # Usage: bash scripts/device/prepare.sh [SEGMENTATION_WORKDIR] [DATA_DIR]
@@ -33,5 +36,7 @@ for name in ("tokenizer.json", "config.json", "sentence_bert_config.json"):
 save_file({k: v.astype(np.float16) for k, v in load_file(str(src / "model.safetensors")).items()},
           ".dev/minilm16/model.safetensors")
 PY
+# the word-embedding rows the dataset's texts use, not all 30,522 (23 MB less; exact for them)
+python3 scripts/device/minilm_vocab.py prune .dev/minilm16 "$DATA"
 du -sh .dev
 echo "staged; the repo and .dev together must stay under 64 MiB"

@@ -44,6 +44,11 @@ if [ ! -f "/tmp/site/.ok$NW" ]; then
     --target /tmp/site .dev/whl/*.whl && touch "/tmp/site/.ok$NW" || exit 1
 fi
 export PYTHONPATH=/tmp/site:$PWD JAXMOTION_MINILM_DIR=$PWD/.dev/minilm16 JAXMOTION_CACHE=$D/xla
+if [ -f .dev/minilm16/vocab_rows.npz ]; then  # pruned by prepare.sh: put the rows back
+  [ -f "$D/minilm/model.safetensors" ] || \
+    $PY scripts/device/minilm_vocab.py restore .dev/minilm16 "$D/minilm" || exit 1
+  export JAXMOTION_MINILM_DIR=$D/minilm
+fi
 echo "== $(date +%T) start; $(nproc) cpus"
 $PY -c "import jax, flax; print('jax', jax.__version__, jax.devices(), 'flax', flax.__version__)" || exit 1
 if [ ! -f "$D/synth/manifest.json" ]; then

@@ -5,8 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from jaxmotion.diffusion.geometric_losses import (acceleration_loss, foot_contact_loss,
-                                                  joint_position_loss, velocity_loss)
+from jaxmotion.diffusion.geometric_losses import (
+    acceleration_loss,
+    foot_contact_loss,
+    joint_position_loss,
+    velocity_loss,
+)
 
 
 def _brute(pred, true, mask, fps, order):
@@ -91,7 +95,7 @@ def test_staircase_costs_more_than_a_smooth_path_with_the_same_position_error():
     stairs[0, :, 0, 0] = 0.2 * np.floor(walk[0, :, 0, 0] / 0.2)  # hold, then jump 20 cm
     shifted = walk + np.array([0.0, 0.1, 0.0], np.float32)  # same size of position error
     mask = np.ones((1, 60), bool)
-    pos = lambda a: float(np.mean(np.sum((a - walk) ** 2, -1)))  # noqa: E731
+    pos = lambda a: float(np.mean(np.sum((a - walk) ** 2, -1)))
     assert pos(shifted) >= pos(stairs)  # the x0 loss prefers the staircase ...
     assert velocity_loss(stairs, walk, mask, 30.0) > 100 * velocity_loss(shifted, walk, mask,
                                                                           30.0) + 1.0

@@ -184,12 +184,13 @@ class ObjectCentricTask(DataTask):
         The prediction's body rides on the true trajectory: the sampler replaces the
         trajectory features by the given trajectory (inpainting), so only the body's joint
         rotations of ``x0_hat`` reach a motion."""
-        from jaxmotion.motion.representation import TRAJECTORY_DIM
-
         from jaxmotion.constants import SCENE_FPS
-        from jaxmotion.diffusion.geometric_losses import (foot_contact_loss,
-                                                          joint_position_loss, velocity_loss)
-        from jaxmotion.motion.representation import motion_to_joints
+        from jaxmotion.diffusion.geometric_losses import (
+            foot_contact_loss,
+            joint_position_loss,
+            velocity_loss,
+        )
+        from jaxmotion.motion.representation import TRAJECTORY_DIM, motion_to_joints
 
         def joints(x):  # frames past the end hold the mean (zeros are no rotation)
             return motion_to_joints(jnp.where(mask[..., None], x * self.std + self.mean,

@@ -5,7 +5,10 @@ frame) along a given trajectory: one condition token per frame from the trajecto
 ``model.traj_sensor=true`` (the paper's, default in the paper preset), the trajectory sensor
 around it. The CPU default leaves the trajectory sensor out: on 2 cores it costs more than
 the network (a 2 m cube of 8³ voxels per frame). Pose features weigh ``pose_weight`` = 10 in
-the L1 loss, as the paper.
+the L1 loss, as the paper. ``joint_weight``, ``foot_contact_weight`` and
+``joint_velocity_weight`` add geometric terms on the forward kinematics of the prediction
+(joint positions, MDM's foot contact, joint velocities; 0 by default); the shipped model was
+fine-tuned with 200 / 3 / 2 (docs/results.md, "The completion model's legs").
 
     python -m jaxmotion.train --config configs/completion.py data_dir=data/synth \
         workdir=runs/completion [preset=tiny|default|paper] [key=value ...]

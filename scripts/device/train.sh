@@ -19,6 +19,8 @@
 # overrides appended to the defaults below, e.g. "crop.centre=room crop.size=8" for the room view,
 # or "model.target_input=true" for the ADM that reads a known target, shipped since session 11).
 # TASK=trajectory / TASK=completion continue the shipped object-centric models (same CPU size;
+# the shipped completion model: TRAIN_ARGS="joint_weight=200 foot_contact_weight=3
+# joint_velocity_weight=2", SCENES=2000 SPLIT=2000 to build in under 2 minutes;
 # add TRAIN_ARGS="model.traj_sensor=true sensor_points=2048" and drop init_from for a completion
 # model with the trajectory sensor, or preset=paper for the paper's size, from scratch).
 # TASK=amdm trains the AMDM on the shipped ADM's maps (half the batches) with the temporal basis

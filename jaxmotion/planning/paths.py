@@ -1,0 +1,188 @@
+"""Walking paths in any scene: a clearance grid from the scene's points, A*, smoothing.
+
+The synthetic world plans on its exact geometry (floor rectangles and furniture boxes,
+:mod:`jaxmotion.motion.planner`). A scan, a mesh or a point cloud has neither, only points, so
+:class:`PointGrid` measures the same thing from them and plugs into the same planner
+(:func:`jaxmotion.motion.planner.plan_path`: 8-connected A* on 5 cm cells, line-of-sight
+shortcuts, corners rounded into arcs, resampled by arc length):
+
+- *obstacles*: every point between ``low`` (0.1 m, above the floor's noise and rugs) and
+  :data:`~jaxmotion.motion.planner.BODY_TOP` (1.9 m), seen from above; objects the path may
+  touch (the seat the person gets up from, the target) can be left out by instance id;
+- *floor*: where a point below ``floor_height`` (5 cm) lies within ``floor_gap`` (0.15 m):
+  outside it (beyond the walls of a scan, a hole in its floor) nobody walks;
+- *clearance* of a place: its horizontal distance to the nearest obstacle point, negative off
+  the floor. A body of radius ``r`` stands where the clearance is at least ``r``.
+
+:func:`approach_point` picks where a walk to an object ends: the free place within reach of
+the object nearest to the start along a path. Errors are
+:class:`~jaxmotion.motion.planner.PlanningError` with the reason (an end inside furniture, a
+room whose free space is not connected between the two).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from jaxmotion.motion.planner import BODY_TOP, CELL, PlanningError, plan_path
+
+__all__ = ["PointGrid", "approach_point", "point_grid", "scene_path"]
+
+#: Body radius a walking path keeps from obstacles (m); the ends may come closer.
+WALK_RADIUS = 0.22
+#: Clearance allowed within ``END_ZONE`` of a path's ends (an approach to a seat).
+END_RADIUS = 0.12
+END_ZONE = 0.6
+
+
+@dataclass(frozen=True)
+class PointGrid:
+    """Clearance grid of a point cloud, with the interface of
+    :class:`jaxmotion.motion.planner.Grid` (``origin``, ``clearance``, ``centers``,
+    ``index``, ``clearance_at``).
+
+    Attributes:
+      origin: ``[2]`` xy of the centre of cell (0, 0), metres.
+      clearance: ``[NX, NY]`` clearance of each cell centre, metres (negative off the floor).
+      obstacles: the obstacle points' tree (xy); floor: the floor points' tree (xy).
+      floor_gap: how far from a floor point a place still counts as floor (m).
+    """
+
+    origin: np.ndarray
+    clearance: np.ndarray
+    obstacles: cKDTree
+    floor: cKDTree
+    floor_gap: float
+
+    def centers(self, ij) -> np.ndarray:
+        """Cell indices ``[N,2]`` -> xy ``[N,2]``."""
+        return self.origin + CELL * np.asarray(ij, float)
+
+    def index(self, xy) -> np.ndarray:
+        """xy ``[N,2]`` -> nearest cell indices ``[N,2]`` (clipped to the grid)."""
+        ij = np.rint((np.asarray(xy, float) - self.origin) / CELL).astype(int)
+        return np.clip(ij, 0, np.array(self.clearance.shape) - 1)
+
+    def clearance_at(self, xy) -> np.ndarray:
+        """Clearance ``[N]`` at points ``[N,2]``: the distance to the nearest obstacle point,
+        -1 off the floor."""
+        xy = np.atleast_2d(np.asarray(xy, float))
+        d_obs = (self.obstacles.query(xy)[0] if self.obstacles.n
+                 else np.full(len(xy), np.inf))
+        on_floor = self.floor.query(xy, distance_upper_bound=self.floor_gap)[0] <= self.floor_gap
+        return np.where(on_floor, np.minimum(d_obs, 10.0), -1.0)
+
+
+def point_grid(xyz, instance=None, *, exclude=(), low: float = 0.1, high: float = BODY_TOP,
+               floor_height: float = 0.05, floor_gap: float = 0.15) -> PointGrid:
+    """The :class:`PointGrid` of a scene's points ``xyz [N,3]`` (z-up, floor at 0, metres);
+    ``instance [N]`` with ``exclude`` (instance ids) leaves those objects out of the
+    obstacles. Raises :class:`PlanningError` for a scene without floor points."""
+    xyz = np.asarray(xyz, float)
+    if xyz.ndim != 2 or xyz.shape[1] != 3 or not len(xyz):
+        raise PlanningError(f"scene points must be [N, 3] with N > 0, got {xyz.shape}")
+    z = xyz[:, 2]
+    floor = xyz[z < floor_height, :2]
+    if len(floor) < 10:
+        raise PlanningError(
+            f"the scene has {len(floor)} points below {floor_height} m: no floor to walk on "
+            "(is it z-up with the floor at z = 0?)")
+    keep = (z >= low) & (z <= high)
+    if instance is not None and len(exclude):
+        keep &= ~np.isin(np.asarray(instance), np.asarray(list(exclude)))
+    lo, hi = floor.min(0), floor.max(0)
+    n = np.floor((hi - lo) / CELL).astype(int) + 1
+    origin = lo + 0.5 * ((hi - lo) - CELL * (n - 1))
+    grid = PointGrid(origin, np.zeros(n), cKDTree(xyz[keep, :2]), cKDTree(floor),
+                     float(floor_gap))
+    ij = np.stack(np.meshgrid(np.arange(n[0]), np.arange(n[1]), indexing="ij"), -1)
+    clr = grid.clearance_at(grid.centers(ij.reshape(-1, 2))).reshape(n)
+    clr.flags.writeable = False
+    return PointGrid(origin, clr, grid.obstacles, grid.floor, grid.floor_gap)
+
+
+def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, float] = (0.3, 0.6),
+                   radius: float = END_RADIUS) -> np.ndarray:
+    """Where a walk from ``start`` (xy) to the object with points ``target_xy [M,2]`` ends:
+    among the free cells (clearance ≥ ``radius``) whose distance to the object is within
+    ``reach``, the one nearest ``start`` by walking distance (Dijkstra over the free cells).
+    Raises :class:`PlanningError` when none is free or none is reachable."""
+    target_xy = np.asarray(target_xy, float).reshape(-1, 2)
+    if not len(target_xy):
+        raise PlanningError("the target has no points")
+    nx, ny = grid.clearance.shape
+    centres = grid.centers(np.stack(np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij"),
+                                    -1).reshape(-1, 2))
+    d_tgt = cKDTree(target_xy).query(centres)[0].reshape(nx, ny)
+    free = grid.clearance >= radius
+    goal = free & (d_tgt >= reach[0]) & (d_tgt <= reach[1])
+    if not goal.any():
+        raise PlanningError(f"no free place within {reach[1]} m of the target for a body of "
+                            f"radius {radius} m (is the object against walls on every side?)")
+    from scipy.sparse.csgraph import dijkstra
+
+    graph, cell_of = _free_graph(free)
+    s = tuple(int(v) for v in grid.index(np.asarray(start, float)[None])[0])
+    if not free[s]:  # from a seat: the nearest free cell
+        ij = np.argwhere(free)
+        s = tuple(ij[np.argmin(np.linalg.norm(ij - np.array(s), axis=1))])
+    dist = dijkstra(graph, indices=cell_of[s])
+    reach_cost = np.full(free.shape, np.inf)
+    reach_cost[free] = dist
+    reach_cost[~goal] = np.inf
+    best = np.unravel_index(np.argmin(reach_cost), free.shape)
+    if not np.isfinite(reach_cost[best]):
+        raise PlanningError("no free place near the target can be reached from the start: the "
+                            "room's free space is not connected between them")
+    return grid.centers(np.asarray(best)[None])[0]
+
+
+def _free_graph(free: np.ndarray):
+    """The 8-connected graph of the free cells (no corner cutting), as a sparse matrix with
+    edge lengths in cells; and the map from cell index to node (-1 for blocked cells)."""
+    from scipy.sparse import coo_matrix
+
+    nx, ny = free.shape
+    node = np.full(free.shape, -1, np.int64)
+    node[free] = np.arange(int(free.sum()))
+    rows, cols, w = [], [], []
+    ij = np.argwhere(free)
+    for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
+        nb = ij + np.array([dx, dy])
+        inside = (nb[:, 0] < nx) & (nb[:, 1] >= 0) & (nb[:, 1] < ny)
+        a, nb = ij[inside], nb[inside]
+        ok = free[nb[:, 0], nb[:, 1]]
+        if dx and dy:  # no corner cutting: both side cells free too
+            ok &= free[a[:, 0] + dx, a[:, 1]] & free[a[:, 0], a[:, 1] + dy]
+        rows.append(node[a[ok, 0], a[ok, 1]])
+        cols.append(node[nb[ok, 0], nb[ok, 1]])
+        w.append(np.full(int(ok.sum()), np.sqrt(2.0) if dx and dy else 1.0))
+    n = int(free.sum())
+    r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
+    g = coo_matrix((np.concatenate([v, v]), (np.concatenate([r, c]), np.concatenate([c, r]))),
+                   shape=(n, n)).tocsr()
+    return g, node
+
+
+def scene_path(grid: PointGrid, start, goal, *, radius: float = WALK_RADIUS,
+               end_radius: float = END_RADIUS, end_zone: float = END_ZONE,
+               step: float = 0.02) -> np.ndarray:
+    """A smooth collision-free walking path ``[M,2]`` from ``start`` to ``goal`` (xy),
+    points ``step`` apart (:func:`jaxmotion.motion.planner.plan_path` on the point grid).
+    A start inside furniture (getting up from a seat) moves to the nearest free place first.
+    Raises :class:`PlanningError` with the reason."""
+    start = np.asarray(start, float)
+    if grid.clearance_at(start)[0] < end_radius:
+        ij = np.argwhere(grid.clearance >= end_radius + 0.5 * CELL)
+        if not len(ij):
+            raise PlanningError("the scene has no free floor for a walking body")
+        near = grid.centers(ij)[np.argmin(np.linalg.norm(grid.centers(ij) - start, axis=1))]
+        if np.linalg.norm(near - start) > 1.0:
+            raise PlanningError(f"the start {start.round(2).tolist()} is more than 1 m from "
+                                "free floor")
+        start = near
+    return plan_path(grid, start, np.asarray(goal, float), radius=radius,
+                     end_radius=end_radius, end_zone=end_zone, step=step)

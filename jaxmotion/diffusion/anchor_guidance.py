@@ -232,7 +232,7 @@ def lying_rotation_6d(current_6d, points_xy, surface) -> jnp.ndarray:
 
 def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
                         strength: float = 1.0, until: int | None = None,
-                        shift_until: int | None = 0, betas=None):
+                        shift_until: int | None = 0, betas=None, given=None):
     """A ``refine_fn(x0_hat, t)`` for :func:`jaxmotion.diffusion.samplers.ddim_sample` on the
     trajectory stage: ``x0_hat [B, T, 9]`` normalised trajectory features (pelvis xyz first;
     ``mean``/``std`` their statistics), all B rows for the one crop ``points``/``normals``
@@ -242,7 +242,11 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
     at which it acts (None: every step; 0: only the last, clean-data prediction);
     ``shift_until``: the same for the horizontal offset alone (default 0: the offset moves the
     final prediction only, so the path's speeds are the model's own; None: as ``until``).
-    ``betas [10]`` (the body; None: neutral) sets the standing height a walk ends at."""
+    ``betas [10]`` (the body; None: neutral) sets the standing height a walk ends at.
+    ``given [T]`` bool: frames held by inpainting (a prefix joined to the previous motion):
+    the horizontal offset leaves them in place and grows smoothly from the last given frame
+    to the anchor frame, so the joined motion does not jump (an anchor inside the given
+    frames is not moved at all)."""
     points = jnp.asarray(points)
     target = jnp.asarray(target_mask, bool)
     surface = support_surface(points, jnp.asarray(normals), target)
@@ -258,6 +262,12 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
     # frame weights of the height: 1 in the hold around the anchor, tapering to 0
     dist = jnp.abs(jnp.arange(mask.shape[0]) - frame).astype(jnp.float32)
     weight = jnp.clip(1.0 - (dist - (HOLD - 1)) / TAPER, 0.0, 1.0) * mask
+    shift = jnp.ones(mask.shape[0], jnp.float32)  # how much of the offset each frame takes
+    if given is not None:
+        n_given = jnp.sum(jnp.asarray(given, jnp.int32))
+        span = jnp.maximum(frame - n_given + 1, 1).astype(jnp.float32)
+        ramp = jnp.clip((jnp.arange(mask.shape[0]) - n_given + 1) / span, 0.0, 1.0)
+        shift = jnp.where(frame >= n_given, ramp * ramp * (3.0 - 2.0 * ramp), 0.0)
     mean, std = jnp.asarray(mean), jnp.asarray(std)
 
     def refine(x0_hat, t):
@@ -288,8 +298,40 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
         turned = ((1.0 - blend) * orient + blend * lie6[:, None, :] - mean[3:9]) / std[3:9]
         x0_hat = x0_hat.at[..., 3:9].set(turned)
         move = jnp.concatenate(
-            [offset[:, None, :] * jnp.ones_like(weight)[None, :, None],
+            [offset[:, None, :] * shift[None, :, None],
              (lift[:, None] * weight[None])[..., None]], axis=-1)  # [B,T,3]
         return x0_hat.at[..., :3].add(move / std[:3])
+
+    return refine
+
+
+#: Frames over which a join's height correction fades (the end's height is the anchor's).
+JOIN_TAPER = 30
+
+
+def make_join_refiner(values, given, mean, std):
+    """A ``refine_fn(x0_hat, t)`` for the trajectory stage of a motion joined to the one
+    before: ``values [T, 9]`` (normalised trajectory features) hold the previous motion's
+    last frames where ``given [T]`` (a prefix) is true. Inpainting alone holds those frames
+    but lets the model put the rest where it likes (a stand-up sampled 0.6 m from the seat
+    it starts on): at every step this moves the predicted free frames so that they continue
+    from the last given one, horizontally as a whole (the model's own path, translated) and
+    in height by an offset fading over :data:`JOIN_TAPER` frames. Apply it before anchor
+    guidance (which then bends the end onto the target)."""
+    given = jnp.asarray(given, bool)
+    n = jnp.sum(given.astype(jnp.int32))
+    last = jnp.maximum(n - 1, 0)
+    frames = jnp.arange(given.shape[0])
+    free = (~given).astype(jnp.float32)
+    fade = jnp.clip(1.0 - (frames - n) / JOIN_TAPER, 0.0, 1.0) * free
+    mean, std = jnp.asarray(mean)[:3], jnp.asarray(std)[:3]
+    target = jnp.asarray(values)[last, :3] * std + mean  # metres
+
+    def refine(x0_hat, t):
+        own = x0_hat[:, last, :3] * std + mean  # [B, 3]: where the model has that frame
+        off = (target[None] - own) * (n > 0)
+        move = jnp.concatenate([off[:, None, :2] * free[None, :, None],
+                                off[:, None, 2:] * fade[None, :, None]], axis=-1)
+        return x0_hat.at[..., :3].add(move / std)
 
     return refine

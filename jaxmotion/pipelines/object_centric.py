@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jnp
 from flax import nnx
 
-from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner
+from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
 from jaxmotion.models.object_centric import ACTION_CLASSES, UNKNOWN_ACTION
@@ -140,7 +140,7 @@ class ObjectCentricPipeline:
                    trajectory_spec: SamplerSpec = DEFAULT_SPEC,
                    completion_spec: SamplerSpec = DEFAULT_SPEC,
                    keep_trajectory: bool = True, action=None,
-                   anchor_guidance: float = 1.0) -> dict:
+                   anchor_guidance: float = 1.0, prefix=None, prefix_frames=None) -> dict:
         """One motion in one crop (jit / vmap it).
 
         Args:
@@ -159,19 +159,15 @@ class ObjectCentricPipeline:
           anchor_guidance: the strength in [0, 1] of anchor guidance on the trajectory stage
             (:mod:`jaxmotion.diffusion.anchor_guidance`: for sit, stand up and lie the pelvis
             is moved over the target's support surface at the anchor frame; 0 = off).
+          prefix, prefix_frames: ``[T, 135]`` motion features (crop frame) and ``[T]`` bool:
+            the frames of ``prefix`` that are given (inpainted in both stages: the previous
+            step's last frames when motions are joined); None: none.
         Returns:
           ``{"trajectory" [T, 9], "motion" [T, 135], "joints" [T, 22, 3]}`` in metres, crop
           frame; frames outside ``mask`` are not meaningful.
         """
-        res = self.trajectory.cfg.sensor_res
         k_traj, k_comp = jax.random.split(key)
-        env, tgt = crop_sensors(points, normals, target_mask, res)
-        base = {"text": text[None], "betas": betas[None], "env_sensor": env[None],
-                "target_sensor": tgt[None], "mask": mask[None],
-                "drop_text": jnp.zeros((1,), bool), "drop_scene": jnp.zeros((1,), bool),
-                "action": jnp.full((1,), UNKNOWN_ACTION if action is None else action,
-                                   jnp.int32)}
-        null = {"drop_text": jnp.ones((1,), bool)}  # guidance on the text
+        base, null = self._conditions(points, normals, target_mask, text, betas, mask, action)
         t_mean, t_std = self.traj_stats
         nt = mask.shape[0]
 
@@ -182,28 +178,68 @@ class ObjectCentricPipeline:
         if anchor_guidance:
             refine = make_anchor_refiner(points, normals, target_mask, mask,
                                          base["action"][0], t_mean, t_std, anchor_guidance,
-                                         betas=betas)
-        x = trajectory_spec.run(k_traj, traj_denoise, self.traj_schedule,
-                                (1, nt, TRAJECTORY_DIM), base, {**base, **null}, refine)
+                                         betas=betas, given=prefix_frames)
+        shape = (1, nt, TRAJECTORY_DIM)
+        known = values = None
+        if prefix is not None:
+            known = jnp.broadcast_to(jnp.asarray(prefix_frames, bool)[None, :, None], shape)
+            values = ((prefix[:, :TRAJECTORY_DIM] - t_mean) / t_std)[None]
+            join = make_join_refiner(values[0], prefix_frames, t_mean, t_std)
+            refine = join if refine is None else (lambda x, t, a=refine: a(join(x, t), t))
+        x = trajectory_spec.run(k_traj, traj_denoise, self.traj_schedule, shape, base,
+                                {**base, **null}, refine, known_mask=known, known_values=values)
         traj = x[0] * t_std + t_mean
+        return self._complete(k_comp, base, null, points, normals, traj, betas, completion_spec,
+                              keep_trajectory, prefix, prefix_frames)
+
+    def complete_one(self, key, points, normals, target_mask, text, betas, trajectory, mask, *,
+                     spec: SamplerSpec = DEFAULT_SPEC, action=None, prefix=None,
+                     prefix_frames=None) -> dict:
+        """The completion stage alone along a given root ``trajectory [T, 9]`` (crop frame):
+        trajectory control, the pelvis follows it exactly. Arguments as :meth:`sample_one`;
+        returns the same dict."""
+        base, null = self._conditions(points, normals, target_mask, text, betas, mask, action)
+        return self._complete(key, base, null, points, normals, jnp.asarray(trajectory,
+                                                                            jnp.float32),
+                              betas, spec, True, prefix, prefix_frames)
+
+    def _conditions(self, points, normals, target_mask, text, betas, mask, action):
+        """The condition dict of a batch of one, and its text-dropped override."""
+        env, tgt = crop_sensors(points, normals, target_mask, self.trajectory.cfg.sensor_res)
+        base = {"text": text[None], "betas": betas[None], "env_sensor": env[None],
+                "target_sensor": tgt[None], "mask": mask[None],
+                "drop_text": jnp.zeros((1,), bool), "drop_scene": jnp.zeros((1,), bool),
+                "action": jnp.full((1,), UNKNOWN_ACTION if action is None else action,
+                                   jnp.int32)}
+        return base, {"drop_text": jnp.ones((1,), bool)}  # guidance on the text
+
+    def _complete(self, key, base, null, points, normals, traj, betas, spec, keep_trajectory,
+                  prefix, prefix_frames) -> dict:
+        """Stage 2: the whole motion along ``traj [T, 9]`` (metres, crop frame)."""
         c_mean, c_std = self.comp_stats
         cond = {**base, "trajectory": ((traj - c_mean[:TRAJECTORY_DIM])
                                        / c_std[:TRAJECTORY_DIM])[None]}
         if self.completion.cfg.traj_sensor:
             sp = self.sensor_points or points.shape[0]
-            cond["traj_sensor"] = trajectory_sensors(points[:sp], normals[:sp], traj, res)[None]
+            cond["traj_sensor"] = trajectory_sensors(points[:sp], normals[:sp], traj,
+                                                     self.trajectory.cfg.sensor_res)[None]
 
         def comp_denoise(x, t, c):
             return self.completion(x, t, c, deterministic=True)
 
-        shape = (1, nt, c_mean.shape[0])
+        shape = (1, traj.shape[0], c_mean.shape[0])
         known = values = None
         if keep_trajectory:  # the stage-1 trajectory held at every step (inpainting)
             known = jnp.zeros(shape, bool).at[..., :TRAJECTORY_DIM].set(True)
             values = jnp.zeros(shape, jnp.float32).at[..., :TRAJECTORY_DIM].set(
                 cond["trajectory"])
-        y = completion_spec.run(k_comp, comp_denoise, self.comp_schedule, shape, cond,
-                                {**cond, **null}, known_mask=known, known_values=values)
+        if prefix is not None:  # the given frames: every feature
+            given = jnp.broadcast_to(jnp.asarray(prefix_frames, bool)[None, :, None], shape)
+            known = given if known is None else known | given
+            norm = ((prefix - c_mean) / c_std)[None]
+            values = norm if values is None else jnp.where(given, norm, values)
+        y = spec.run(key, comp_denoise, self.comp_schedule, shape, cond, {**cond, **null},
+                     known_mask=known, known_values=values)
         motion = y[0] * c_std + c_mean
         return {"trajectory": traj, "motion": motion, "joints": motion_to_joints(motion, betas)}
 

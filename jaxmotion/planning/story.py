@@ -1,0 +1,401 @@
+"""Stories in a room: steps (stand up from chair 3, walk to table 4, sit on chair 7) joined
+into one motion.
+
+A plan is a list of steps, each an action (walk / sit / stand_up / lie) and an object id of
+the scene (:func:`read_plan` checks every step before any sampling: the id exists, the object
+takes the action, a free place near it can be reached from the previous one). :func:`tell`
+makes the motion with the object-centric models, step after step, each starting from the last
+:data:`PREFIX` frames of the one before (inpainted into both stages, so the joins do not jump):
+
+- **sit / lie / stand up** on object X: one window of the models (4 s at 30 fps) sampled in
+  the crop around X, anchor guidance putting the pelvis on X's seat or mattress
+  (:mod:`jaxmotion.diffusion.anchor_guidance`; its horizontal offset grows from the joined
+  frames to the anchor, so it never moves them; join guidance makes the model's path continue
+  from them). A sit or lie more than :data:`NEAR` from the person first walks to
+  :data:`SIT_REACH` of it, where the models' own walk-in-and-sit begins.
+- **walk** to X: a path on the scene's points (:mod:`jaxmotion.planning.paths`) from where the
+  person stands to the nearest free place within reach of X, timed by a human speed profile
+  and turned to face X at the end (:mod:`jaxmotion.planning.trajectory`); the completion model
+  writes the body along it (trajectory control: the pelvis follows the path exactly), in
+  overlapping windows, each crop centred on its stretch of the path.
+
+Everything is in the scene's frame (z-up, metres, 30 fps); the same seed gives the same story.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxmotion.errors import GenerateError
+from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
+
+__all__ = ["PREFIX", "Step", "Story", "read_plan", "tell"]
+
+#: Frames of the previous motion each step or window starts from (held by inpainting).
+PREFIX = 10
+#: Frames over which consecutive windows of a walk crossfade the body, after the prefix.
+BLEND = 20
+#: A sit or lie farther than this (m, pelvis to the nearest point of the object) walks first,
+#: to a place :data:`SIT_REACH` from it: the models learnt to walk in and sit from 1–2.5 m.
+NEAR = 2.2
+SIT_REACH = (1.0, 1.6)
+ACTIONS = ("walk", "sit", "stand_up", "lie")
+_TAKES = {"sit": SEAT_CATEGORIES, "stand_up": SEAT_CATEGORIES, "lie": LIE_CATEGORIES}
+_TEXT = {"walk": "walk to the {}", "sit": "sit on the {}", "stand_up": "stand up from the {}",
+         "lie": "lie down on the {}"}
+
+
+@dataclasses.dataclass(frozen=True)
+class Step:
+    """One step of a plan: ``action`` (walk / sit / stand_up / lie) on object ``object``."""
+
+    action: str
+    object: int
+
+
+@dataclasses.dataclass
+class Story:
+    """A story's motion in the scene frame.
+
+    Attributes:
+      motion: ``[T, 135]`` features (pelvis, 6D orientation, 21 body rotations).
+      joints: ``[T, 22, 3]`` metres. fps: frames per second.
+      segments: per step done (a sit far away adds its walk): ``{"action", "object",
+        "first", "last"}`` (frame indices, inclusive).
+      paths: the planned ground paths ``[M, 2]`` of the walks, in order.
+    """
+
+    motion: np.ndarray
+    joints: np.ndarray
+    fps: float
+    segments: list
+    paths: list
+
+
+def read_plan(plan, scene) -> tuple[Step, ...]:
+    """The steps of ``plan`` (a list of ``{"action", "object"}`` dicts or :class:`Step`, or a
+    JSON file holding that list), checked against ``scene``'s objects; :class:`GenerateError`
+    naming the bad step and the fix. A step after a sit or lie that is not the stand-up from
+    it gets that stand-up inserted before it (the returned steps include it)."""
+    from jaxmotion.grounding.objects import object_table
+
+    if isinstance(plan, (str, Path)):
+        try:
+            plan = json.loads(Path(plan).read_text())
+        except (OSError, ValueError) as e:
+            raise GenerateError(f"cannot read the plan {plan}: {e}") from e
+    if not isinstance(plan, (list, tuple)) or not plan:
+        raise GenerateError('a plan is a non-empty list of steps such as {"action": "sit", '
+                            '"object": 3}')
+    objects = {int(o["id"]): o for o in object_table(scene)}
+    if not objects:
+        raise GenerateError("the scene has no objects (no per-point instance labels): a plan "
+                            "names objects by id")
+    steps = []
+    for i, raw in enumerate(plan, 1):
+        step = raw if isinstance(raw, Step) else None
+        if step is None:
+            if not isinstance(raw, dict) or set(raw) != {"action", "object"}:
+                raise GenerateError(f'step {i}: {raw!r} is not {{"action": ..., "object": id}}')
+            step = Step(str(raw["action"]), raw["object"])
+        if step.action not in ACTIONS:
+            raise GenerateError(f"step {i}: unknown action {step.action!r}; valid: "
+                                f"{', '.join(ACTIONS)}")
+        try:
+            oid = int(step.object)
+        except (TypeError, ValueError):
+            raise GenerateError(f"step {i}: object {step.object!r} is not an id") from None
+        if oid not in objects:
+            valid = ", ".join(f"{k} ({o['category']})" for k, o in sorted(objects.items()))
+            raise GenerateError(f"step {i}: the scene has no object {oid}; its objects: {valid}")
+        cat = objects[oid]["category"]
+        if step.action in _TAKES and cat not in _TAKES[step.action]:
+            raise GenerateError(f"step {i}: cannot {step.action.replace('_', ' ')} "
+                                f"{'on' if step.action != 'stand_up' else 'from'} a {cat} "
+                                f"(object {oid}); that takes {', '.join(_TAKES[step.action])}")
+        steps.append(Step(step.action, oid))
+    if steps[0].action == "walk":
+        raise GenerateError("step 1: a story starts on an object (stand_up, sit or lie): the "
+                            "walk needs a place to start from")
+    out = [steps[0]]
+    for i, (a, b) in enumerate(itertools.pairwise(steps), 2):
+        seated = a.action in ("sit", "lie")
+        if b.action == "stand_up" and not (seated and a.object == b.object):
+            raise GenerateError(f"step {i}: stand up from object {b.object} follows a sit or "
+                                f"lie on it (the previous step is {a.action} on {a.object})")
+        if seated and b.action != "stand_up":  # up first: "sit on 3, walk to 4"
+            out.append(Step("stand_up", a.object))
+        out.append(b)
+    return tuple(out)
+
+
+def _rot6(m):
+    from jaxmotion.geometry.rotations import matrix_to_rotation_6d
+
+    return np.asarray(matrix_to_rotation_6d(jnp.asarray(m, jnp.float32)))
+
+
+def _mat(six):
+    from jaxmotion.geometry.rotations import rotation_6d_to_matrix
+
+    return np.asarray(rotation_6d_to_matrix(jnp.asarray(six, jnp.float32)))
+
+
+def _to_crop(f, rot, shift):
+    """Features ``[T, D]`` (D ≥ 9) from the scene frame into a crop frame
+    (``x_crop = rot @ (x − shift)``)."""
+    out = np.array(f, np.float32)
+    out[:, :3] = (f[:, :3] - shift) @ rot.T
+    out[:, 3:9] = _rot6(rot[None] @ _mat(f[:, 3:9]))
+    return out
+
+
+def _to_scene(f, rot, shift):
+    out = np.array(f, np.float32)
+    out[:, :3] = f[:, :3] @ rot + shift
+    out[:, 3:9] = _rot6(rot.T[None] @ _mat(f[:, 3:9]))
+    return out
+
+
+def _stood_up(pelvis_z, seated: float, hold: int = 15) -> int:
+    """Frames of a stand-up to keep: until ``hold`` frames after the pelvis has risen 90 % of
+    the way from ``seated`` to the standing height (all of them if it never does)."""
+    from jaxmotion.diffusion.anchor_guidance import standing_height
+
+    up = seated + 0.9 * (float(standing_height(None)) - seated)
+    risen = np.flatnonzero(np.asarray(pelvis_z) >= up)
+    return len(pelvis_z) if not len(risen) else min(len(pelvis_z), int(risen[0]) + hold)
+
+
+def _heading(six) -> float:
+    """Facing (radians from +x) of one 6D orientation: the body's forward (z) axis."""
+    fwd = _mat(np.asarray(six)[None])[0][:, 2]
+    return float(np.arctan2(fwd[1], fwd[0]))
+
+
+class _Teller:
+    """The state of one story being told (models, compiled steps, the motion so far)."""
+
+    def __init__(self, scene, files, seed, steps_spec, progress):
+        from jaxmotion.data.crop import crop_spec_from_config
+        from jaxmotion.models.weights import read_config
+        from jaxmotion.pipelines.object_centric import load_object_pipeline
+
+        self.scene, self.seed, self.progress = scene, int(seed), progress
+        self.pipe = load_object_pipeline(str(files[0]), str(files[1]))
+        cfg = read_config(files[1])
+        self.spec, self.frames = crop_spec_from_config(cfg), int(cfg["max_frames"])
+        self.key = jax.random.key(self.seed)
+        self.windows = 0
+        self.motion = None  # [T, 135] scene frame
+        self.segments, self.paths = [], []
+        self.betas = jnp.zeros(10, jnp.float32)
+        pipe, sampler = self.pipe, steps_spec
+        t = self.frames
+
+        def sample(k, p, n, tgt, e, a, pre, pf):
+            return pipe.sample_one(k, p, n, tgt, e, self.betas, jnp.ones(t, bool),
+                                   trajectory_spec=sampler, completion_spec=sampler, action=a,
+                                   prefix=pre, prefix_frames=pf)["motion"]
+
+        def complete(k, p, n, tgt, e, a, traj, mask, pre, pf):
+            return pipe.complete_one(k, p, n, tgt, e, self.betas, traj, mask, spec=sampler,
+                                     action=a, prefix=pre, prefix_frames=pf)["motion"]
+
+        self._sample, self._complete = jax.jit(sample), jax.jit(complete)
+        self._emb = {}
+
+    def text(self, action, obj) -> np.ndarray:
+        from jaxmotion._jax_setup import enable_compilation_cache
+        from jaxmotion.models.adm import pooled_text
+        from jaxmotion.text.condition import embed_one
+
+        sentence = _TEXT[action].format(obj["category"])
+        if sentence not in self._emb:
+            emb = embed_one(sentence, enable_compilation_cache() / "text-embeddings")
+            self._emb[sentence] = np.asarray(pooled_text(emb), np.float32)[0]
+        return self._emb[sentence]
+
+    def crop(self, centre, oid):
+        from jaxmotion.data.crop import crop_at
+
+        rng = np.random.default_rng([self.seed, 7, self.windows])
+        pick, pts, shift, rot = crop_at(rng, self.scene.xyz, np.asarray(centre, float),
+                                        self.spec)
+        normals = (np.asarray(self.scene.normal[pick], np.float32) @ rot.T).astype(np.float32)
+        return (pts.astype(np.float32), normals, self.scene.instance[pick] == oid,
+                rot.astype(np.float32), shift.astype(np.float32))
+
+    def next_key(self):
+        self.windows += 1
+        return jax.random.fold_in(self.key, self.windows)
+
+    def prefix(self, rot, shift, blend):
+        """The previous motion's frames a window starts from, in the crop frame, and their
+        mask: PREFIX frames ending ``blend`` frames before its end (the window's next
+        ``blend`` frames then crossfade with those last ones, :meth:`join`)."""
+        pre = np.zeros((self.frames, 135), np.float32)
+        given = np.zeros(self.frames, bool)
+        if self.motion is not None:
+            end = len(self.motion) - blend
+            pre[:PREFIX] = _to_crop(self.motion[end - PREFIX:end], rot, shift)
+            given[:PREFIX] = True
+        return pre, given
+
+    def join(self, new, action, oid, blend):
+        """Append a window ``new`` (scene frame) that starts from :meth:`prefix` with the
+        same ``blend``: its frames after the prefix crossfade with the previous motion's last
+        ``blend`` frames, which become the new step's first."""
+        if self.motion is None:
+            first, self.motion = 0, new
+        else:
+            first = len(self.motion) - blend
+            if blend:
+                w = ((np.arange(blend) + 1) / (blend + 1))[:, None]
+                self.motion[first:] = (1 - w) * self.motion[first:] + w * new[PREFIX:PREFIX
+                                                                              + blend]
+                self.segments[-1]["last"] = first - 1
+            self.motion = np.concatenate([self.motion, new[PREFIX + blend:]])
+        self.segments.append({"action": action, "object": oid, "first": first,
+                              "last": len(self.motion) - 1})
+
+    def on_object(self, action, obj):
+        """sit / stand_up / lie: one window in the crop around the object."""
+        from jaxmotion.grounding.region import centre_on_object
+        from jaxmotion.pipelines.object_centric import action_index
+
+        lo, hi = self.scene.xyz[:, :2].min(0), self.scene.xyz[:, :2].max(0)
+        pts, nrm, tgt, rot, shift = self.crop(centre_on_object(obj, lo, hi, self.spec.size),
+                                              obj["id"])
+        if not tgt.any():
+            raise GenerateError(f"object {obj['id']} has no point in the crop around it")
+        # a stand-up starts from the seated end as it is; after a walk the body crossfades
+        blend = 0 if action == "stand_up" else BLEND
+        pre, given = self.prefix(rot, shift, blend)
+        out = np.asarray(self._sample(self.next_key(), pts, nrm, tgt, self.text(action, obj),
+                                      action_index(action), pre, given))
+        new = _to_scene(out, rot, shift)
+        if action == "stand_up":  # up, then the next step walks: cut the model's walk-off
+            new = new[:_stood_up(new[:, 2], float(new[0, 2]))]
+        self.join(new, action, obj["id"], blend)
+
+    def walk_to(self, obj, grid, reach=(0.3, 0.6)):
+        """walk: a planned path to within ``reach`` of the object, the body written along it
+        window by window."""
+        from jaxmotion.pipelines.object_centric import action_index
+        from jaxmotion.planning.paths import approach_point, scene_path
+        from jaxmotion.planning.trajectory import path_trajectory
+
+        here = self.motion[-1]
+        pts_xy = self.scene.xyz[self.scene.instance == obj["id"], :2]
+        goal = approach_point(grid, pts_xy, here[:2], reach=reach)
+        path = scene_path(grid, here[:2], goal)
+        if np.linalg.norm(path[0] - here[:2]) > 1e-3:  # off the seat first
+            path = np.concatenate([here[None, :2], path])
+        centre = 0.5 * (np.asarray(obj["bbox_min"][:2]) + np.asarray(obj["bbox_max"][:2]))
+        face = float(np.arctan2(*(centre - path[-1])[::-1]))
+        traj = path_trajectory(path, start_heading=_heading(here[3:9]), end_heading=face,
+                               height=float(here[2]))
+        # the pelvis height eases from where it is to the standing height of the walk
+        from jaxmotion.diffusion.anchor_guidance import standing_height
+
+        stand = float(standing_height(None))
+        ease = np.clip(np.arange(len(traj)) / 15.0, 0.0, 1.0)
+        traj[:, 2] = here[2] + (stand - here[2]) * ease * ease * (3 - 2 * ease)
+        lead = PREFIX + BLEND  # the previous motion's frames the walk starts over
+        full = np.concatenate([self.motion[-lead:, :9], traj[1:]])  # scene frame
+        n, t = len(full), self.frames
+        seg = np.zeros((n, 135), np.float32)
+        seg[:lead] = self.motion[-lead:]
+        emb, act = self.text("walk", obj), action_index("walk")
+        s, done = 0, lead  # window start; frames of seg written so far
+        while True:
+            stop = min(s + t, n)
+            win = np.concatenate([full[s:stop], np.repeat(full[stop - 1:stop], t - (stop - s),
+                                                          axis=0)])
+            pts, nrm, tgt, rot, shift = self.crop(win[: stop - s, :2].mean(0), obj["id"])
+            pre = np.zeros((t, 135), np.float32)
+            pre[:PREFIX] = _to_crop(seg[s:s + PREFIX], rot, shift)
+            given = np.arange(t) < PREFIX
+            mask = np.arange(t) < stop - s
+            out = np.asarray(self._complete(self.next_key(), pts, nrm, tgt, emb, act,
+                                            _to_crop(win, rot, shift), mask, pre, given))
+            new = _to_scene(out, rot, shift)[: stop - s]
+            both = done - s  # frames the last window wrote too: the body crossfades over them
+            if both > PREFIX:
+                w = ((np.arange(both) - PREFIX + 1) / (both - PREFIX + 1)).clip(0, 1)[:, None]
+                new[:both] = (1 - w) * seg[s:done] + w * new[:both]
+            seg[s:stop] = new
+            done = stop
+            if stop == n:
+                break
+            s = stop - PREFIX - BLEND
+        self.paths.append(path)
+        first = len(self.motion) - BLEND  # seg[PREFIX:lead]: the last motion's end, crossfaded
+        self.segments[-1]["last"] = first - 1
+        self.motion = np.concatenate([self.motion[:-BLEND], seg[PREFIX:]])
+        self.segments.append({"action": "walk", "object": obj["id"], "first": first,
+                              "last": len(self.motion) - 1})
+
+
+def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
+         guidance: float = 1.0, progress: bool = False) -> Story:
+    """The story of ``plan`` (see :func:`read_plan`) in ``scene`` (a
+    :class:`~jaxmotion.scene.Scene` or what ``generate`` takes), as one motion.
+
+    Args:
+      seed: every random choice (the same seed gives the same story).
+      files: ``(trajectory, completion)`` weights, or a folder holding both (default: the
+        shipped ones).
+      steps, guidance: the DDIM steps and text guidance of both stages.
+    """
+    from jaxmotion.diffusion.samplers import SamplerSpec
+    from jaxmotion.grounding.objects import object_table
+    from jaxmotion.motion.planner import PlanningError
+    from jaxmotion.motion.representation import motion_to_joints
+    from jaxmotion.pipelines.checkpoints import resolve_object_checkpoints
+    from jaxmotion.planning.paths import approach_point, point_grid
+    from jaxmotion.scene.demo import load_scene_arg
+
+    scene = load_scene_arg(scene)
+    plan = read_plan(plan, scene)
+    objects = {int(o["id"]): o for o in object_table(scene)}
+    grid = point_grid(scene.xyz, scene.instance)
+    # every place a walk goes must exist and be reachable from the one before: checked first
+    where = None
+    for i, step in enumerate(plan, 1):
+        if step.action == "stand_up":
+            continue
+        pts = scene.xyz[scene.instance == step.object, :2]
+        try:
+            start = where if where is not None else pts.mean(0)
+            where = approach_point(grid, pts, start)
+        except PlanningError as e:
+            raise GenerateError(f"step {i} ({step.action} on object {step.object}): {e}") from e
+    files = resolve_object_checkpoints(files)
+    teller = _Teller(scene, files, seed, SamplerSpec("ddim", steps, guidance=guidance), progress)
+    for i, step in enumerate(plan, 1):
+        obj = objects[step.object]
+        if progress:
+            print(f"  step {i}/{len(plan)}: {step.action} {obj['category']} {step.object}",
+                  flush=True)
+        try:
+            if step.action == "walk":
+                teller.walk_to(obj, grid)
+                continue
+            if step.action in ("sit", "lie") and teller.motion is not None:
+                pts = scene.xyz[scene.instance == step.object, :2]
+                if np.min(np.linalg.norm(pts - teller.motion[-1, :2], axis=1)) > NEAR:
+                    teller.walk_to(obj, grid, SIT_REACH)
+            teller.on_object(step.action, obj)
+        except PlanningError as e:
+            raise GenerateError(f"step {i} ({step.action} on object {step.object}): {e}") from e
+    joints = np.asarray(motion_to_joints(jnp.asarray(teller.motion), teller.betas))
+    return Story(teller.motion, joints, 30.0, teller.segments, teller.paths)

@@ -314,24 +314,44 @@ def make_join_refiner(values, given, mean, std):
     before: ``values [T, 9]`` (normalised trajectory features) hold the previous motion's
     last frames where ``given [T]`` (a prefix) is true. Inpainting alone holds those frames
     but lets the model put the rest where it likes (a stand-up sampled 0.6 m from the seat
-    it starts on): at every step this moves the predicted free frames so that they continue
-    from the last given one, horizontally as a whole (the model's own path, translated) and
-    in height by an offset fading over :data:`JOIN_TAPER` frames. Apply it before anchor
-    guidance (which then bends the end onto the target)."""
+    it starts on, a sit facing away from where the walk before it faced): at every step this
+    moves the predicted free frames so that they continue from the last given one. The
+    heading difference at that frame turns the free frames (orientation and path, about the
+    joint) by an angle fading over :data:`JOIN_TAPER` frames, as does the height difference;
+    the horizontal difference moves them as a whole (the model's own path, translated). Apply
+    it before anchor guidance (which then bends the end onto the target)."""
+    from jaxmotion.geometry.rotations import matrix_to_rotation_6d, rotation_6d_to_matrix
+
     given = jnp.asarray(given, bool)
     n = jnp.sum(given.astype(jnp.int32))
     last = jnp.maximum(n - 1, 0)
     frames = jnp.arange(given.shape[0])
     free = (~given).astype(jnp.float32)
     fade = jnp.clip(1.0 - (frames - n) / JOIN_TAPER, 0.0, 1.0) * free
-    mean, std = jnp.asarray(mean)[:3], jnp.asarray(std)[:3]
-    target = jnp.asarray(values)[last, :3] * std + mean  # metres
+    mean, std = jnp.asarray(mean)[:9], jnp.asarray(std)[:9]
+    prefix = jnp.asarray(values)[last] * std + mean  # [9] metres / 6D
+
+    def yaw(six):
+        fwd = rotation_6d_to_matrix(six)[..., :, 2]  # the body's forward (z) axis
+        return jnp.arctan2(fwd[..., 1], fwd[..., 0])
 
     def refine(x0_hat, t):
-        own = x0_hat[:, last, :3] * std + mean  # [B, 3]: where the model has that frame
-        off = (target[None] - own) * (n > 0)
-        move = jnp.concatenate([off[:, None, :2] * free[None, :, None],
-                                off[:, None, 2:] * fade[None, :, None]], axis=-1)
-        return x0_hat.at[..., :3].add(move / std)
+        x = x0_hat * std + mean  # [B, T, 9]
+        own = x[:, last]  # [B, 9]: where the model has the last given frame
+        on = (n > 0).astype(jnp.float32)
+        turn = jnp.angle(jnp.exp(1j * (yaw(prefix[3:9]) - yaw(own[:, 3:9])))) * on  # [B]
+        ang = turn[:, None] * fade[None]  # [B, T]
+        c, s = jnp.cos(ang), jnp.sin(ang)
+        rz = jnp.stack([jnp.stack([c, -s, jnp.zeros_like(c)], -1),
+                        jnp.stack([s, c, jnp.zeros_like(c)], -1),
+                        jnp.broadcast_to(jnp.array([0.0, 0.0, 1.0]), c.shape + (3,))], -2)
+        rel = x[..., :2] - own[:, None, :2]
+        xy = own[:, None, :2] + jnp.einsum("btij,btj->bti", rz[..., :2, :2], rel)
+        xy = xy + (prefix[None, None, :2] - own[:, None, :2]) * on
+        z = x[..., 2] + (prefix[2] - own[:, 2:3]) * on * fade[None]
+        orient = matrix_to_rotation_6d(rz @ rotation_6d_to_matrix(x[..., 3:9]))
+        out = jnp.concatenate([xy, z[..., None], orient], -1)
+        out = jnp.where(free[None, :, None] > 0, out, x)
+        return (out - mean) / std
 
     return refine

@@ -105,11 +105,13 @@ def point_grid(xyz, instance=None, *, exclude=(), low: float = 0.1, high: float 
 
 
 def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, float] = (0.3, 0.6),
-                   radius: float = END_RADIUS) -> np.ndarray:
+                   radius: float = END_RADIUS, front=None) -> np.ndarray:
     """Where a walk from ``start`` (xy) to the object with points ``target_xy [M,2]`` ends:
     among the free cells (clearance ≥ ``radius``) whose distance to the object is within
     ``reach``, the one nearest ``start`` by walking distance (Dijkstra over the free cells).
-    Raises :class:`PlanningError` when none is free or none is reachable."""
+    ``front`` (the object's facing, a 2-D or 3-D vector, e.g. a chair's): only cells in front
+    of the object's front face count, while one of them can be reached. Raises
+    :class:`PlanningError` when none is free or none is reachable."""
     target_xy = np.asarray(target_xy, float).reshape(-1, 2)
     if not len(target_xy):
         raise PlanningError("the target has no points")
@@ -133,6 +135,12 @@ def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, flo
     reach_cost = np.full(free.shape, np.inf)
     reach_cost[free] = dist
     reach_cost[~goal] = np.inf
+    if front is not None and np.linalg.norm(np.asarray(front, float)[:2]) > 1e-6:
+        f = np.asarray(front, float)[:2] / np.linalg.norm(np.asarray(front, float)[:2])
+        ahead = ((centres - target_xy.mean(0)) @ f).reshape(nx, ny) > (
+            (target_xy - target_xy.mean(0)) @ f).max()
+        if np.isfinite(reach_cost[ahead]).any():
+            reach_cost[~ahead] = np.inf
     best = np.unravel_index(np.argmin(reach_cost), free.shape)
     if not np.isfinite(reach_cost[best]):
         raise PlanningError("no free place near the target can be reached from the start: the "

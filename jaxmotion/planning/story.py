@@ -12,7 +12,9 @@ makes the motion with the object-centric models, step after step, each starting 
   (:mod:`jaxmotion.diffusion.anchor_guidance`; its horizontal offset grows from the joined
   frames to the anchor, so it never moves them; join guidance makes the model's path continue
   from them). A sit or lie more than :data:`NEAR` from the person first walks to
-  :data:`SIT_REACH` of it, where the models' own walk-in-and-sit begins.
+  :data:`SIT_REACH` of it (in front of it when the object has a ``front``), where the models'
+  own walk-in-and-sit takes over: close, so that the model's path (which sees obstacles only
+  through 0.5 m voxels) has little room to cross furniture.
 - **walk** to X: a path on the scene's points (:mod:`jaxmotion.planning.paths`) from where the
   person stands to the nearest free place within reach of X, timed by a human speed profile
   and turned to face X at the end (:mod:`jaxmotion.planning.trajectory`); the completion model
@@ -43,9 +45,9 @@ PREFIX = 10
 #: Frames over which consecutive windows of a walk crossfade the body, after the prefix.
 BLEND = 20
 #: A sit or lie farther than this (m, pelvis to the nearest point of the object) walks first,
-#: to a place :data:`SIT_REACH` from it: the models learnt to walk in and sit from 1–2.5 m.
-NEAR = 2.2
-SIT_REACH = (1.0, 1.6)
+#: to a place :data:`SIT_REACH` from it.
+NEAR = 1.2
+SIT_REACH = (0.5, 1.0)
 ACTIONS = ("walk", "sit", "stand_up", "lie")
 _TAKES = {"sit": SEAT_CATEGORIES, "stand_up": SEAT_CATEGORIES, "lie": LIE_CATEGORIES}
 _TEXT = {"walk": "walk to the {}", "sit": "sit on the {}", "stand_up": "stand up from the {}",
@@ -295,7 +297,7 @@ class _Teller:
 
         here = self.motion[-1]
         pts_xy = self.scene.xyz[self.scene.instance == obj["id"], :2]
-        goal = approach_point(grid, pts_xy, here[:2], reach=reach)
+        goal = approach_point(grid, pts_xy, here[:2], reach=reach, front=obj.get("front"))
         path = scene_path(grid, here[:2], goal)
         if np.linalg.norm(path[0] - here[:2]) > 1e-3:  # off the seat first
             path = np.concatenate([here[None, :2], path])

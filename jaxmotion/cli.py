@@ -192,11 +192,21 @@ def _cmd_generate(args: argparse.Namespace) -> int:
             raise FileNotFoundError(f"--scene {args.scene}: no such file; give a mesh or point "
                                     "cloud (PLY / OBJ / GLB / GLTF / OFF / STL / NPZ) or 'demo'")
     text = DEFAULT_TEXT if args.text is None else args.text
+    if args.plan is not None:
+        if args.text is not None:
+            raise ValueError("give --text (one instruction) or --plan (a story), not both")
+        from pathlib import Path
+
+        if not Path(args.plan).is_file():
+            raise FileNotFoundError(f"--plan {args.plan}: no such file; give a JSON list of "
+                                    'steps such as [{"action": "stand_up", "object": 3}, '
+                                    '{"action": "walk", "object": 4}]')
+        text = f"the story in {args.plan}"
     print(f"generating {options.samples} motion(s) for {text!r} in {args.scene} ...",
           file=sys.stderr, flush=True)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
-        res = generate(args.scene, text, options=options, progress=True)
+        res = generate(args.scene, text, options=options, progress=True, plan=args.plan)
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
     t1 = time.perf_counter()
@@ -362,6 +372,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scene", default="demo", help="scene file, or 'demo' (default)")
     p.add_argument("--text", default=None,
                    help='the instruction (default: "sit on the chair next to the table")')
+    p.add_argument("--plan", default=None, metavar="PLAN.json",
+                   help='a story instead of --text: a JSON list of steps on object ids (as '
+                   '`jaxmotion scene info` lists them), e.g. [{"action": "stand_up", "object": '
+                   '3}, {"action": "walk", "object": 4}, {"action": "sit", "object": 7}]; one '
+                   "motion, walks on planned paths, written with its segments")
     p.add_argument("--object", type=int, default=None,
                    help="target object's instance id (skips finding it from the text)")
     p.add_argument("--samples", type=int, default=None, help="motions to sample (K, default 1)")

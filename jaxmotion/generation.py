@@ -65,7 +65,6 @@ class _Models:
 
     def pipeline(self, adm: Path):
         from jaxmotion.pipelines.checkpoints import load_pipeline
-
         return load_pipeline(str(adm), str(self.amdm))
 
 
@@ -101,7 +100,7 @@ def _check_models(checkpoints, object_checkpoints=None, pipeline="auto") -> _Mod
 
 
 def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None = None,
-             progress: bool = False, **overrides) -> Generation:
+             progress: bool = False, plan=None, **overrides) -> Generation:
     """Generate motions of a person doing ``text`` in ``scene``.
 
     Args:
@@ -113,17 +112,18 @@ def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None
         ``motion_candidates``, ``checkpoints``, ``num_points``, ``fit``, ``fit_iters``,
         ``aot``; None = the default), which also override ``options``' fields.
       progress: print the stages with their times (to stderr).
+      plan: a story instead of ``text``: steps ``{"action", "object"}`` on object ids (or a
+        JSON file of them), joined into one motion (:mod:`jaxmotion.planning.story`).
     Raises:
       GenerateError: bad text, scene, object id, options or checkpoints (the message names
         the fix), before any model is loaded.
     """
-    if options is None:
-        opts = GenerateOptions.build(**overrides)
-    else:
-        opts = dataclasses.replace(options, **{k: v for k, v in overrides.items()
-                                               if v is not None})
+    opts = (GenerateOptions.build(**overrides) if options is None else dataclasses.replace(
+        options, **{k: v for k, v in overrides.items() if v is not None}))
+    if plan is not None:
+        from jaxmotion.planning.story import story_generation
+        return story_generation(scene, plan, opts, progress)
     from jaxmotion.text.condition import check_text
-
     models = _check_models(opts.checkpoints, opts.object_checkpoints, opts.pipeline)
     text = check_text(text)
     return _run(scene, text, opts, models, progress)

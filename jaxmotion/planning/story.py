@@ -38,7 +38,7 @@ import numpy as np
 from jaxmotion.errors import GenerateError
 from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
-__all__ = ["PREFIX", "Step", "Story", "read_plan", "tell"]
+__all__ = ["PREFIX", "Step", "Story", "describe", "read_plan", "story_generation", "tell"]
 
 #: Frames of the previous motion each step or window starts from (held by inpainting).
 PREFIX = 10
@@ -401,3 +401,45 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
             raise GenerateError(f"step {i} ({step.action} on object {step.object}): {e}") from e
     joints = np.asarray(motion_to_joints(jnp.asarray(teller.motion), teller.betas))
     return Story(teller.motion, joints, 30.0, teller.segments, teller.paths)
+
+
+def describe(plan, scene) -> str:
+    """A story's steps said as text: "stand up from the chair 4, walk to the fridge 9, ..."."""
+    from jaxmotion.grounding.objects import object_table
+
+    cats = {int(o["id"]): o["category"] for o in object_table(scene)}
+    return ", ".join(_TEXT[s.action].format(f"{cats[s.object]} {s.object}") for s in plan)
+
+
+def story_generation(scene, plan, opts, progress: bool = False):
+    """``jaxmotion.generate(scene, plan=...)``: the story as a
+    :class:`~jaxmotion.result.Generation` (one sample; its ``segments`` and ``paths`` set),
+    with the SMPL-X parameters of the motion itself (the object-centric models write joint
+    rotations: no fit is needed, the fit error is 0). ``opts`` gives ``seed``, ``steps``,
+    the motion stage's ``guidance`` and ``object_checkpoints``."""
+    import time
+
+    from jaxmotion.constants import SCENE_FPS
+    from jaxmotion.motion.representation import motion_to_smplx
+    from jaxmotion.result import Generation
+    from jaxmotion.scene.demo import load_scene_arg
+
+    t0 = time.perf_counter()
+    room = load_scene_arg(scene, opts.num_points)
+    steps = read_plan(plan, room)
+    story = tell(room, steps, seed=opts.seed, files=opts.object_checkpoints, steps=opts.steps,
+                 guidance=opts.guidance[1], progress=progress)
+    t1 = time.perf_counter()
+    smplx = {k: np.asarray(v, np.float32)[None]
+             for k, v in motion_to_smplx(jnp.asarray(story.motion)).items()}
+    smplx["betas"] = np.zeros((1, 10), np.float32)
+    n = len(story.joints)
+    return Generation(
+        text=describe(steps, room), scene=room, joints=story.joints[None].astype(np.float32),
+        fps=SCENE_FPS, mask=np.ones(n, bool), smplx=smplx, fit_error=np.zeros(1, np.float32),
+        crop_xyz=np.zeros((0, 3), np.float32), crop_rgb=np.zeros((0, 3), np.float32),
+        affordance=np.zeros((1, 0, 6), np.float32), rotation=np.eye(3, dtype=np.float32),
+        shift=np.zeros(3, np.float32), object_id=None, target_id=steps[-1].object,
+        seed=opts.seed, steps=opts.steps, timings={"story": t1 - t0},
+        guidance=(0.0, float(opts.guidance[1])), grounding="plan", pipeline="story",
+        motion_candidates=1, segments=tuple(story.segments), paths=tuple(story.paths))

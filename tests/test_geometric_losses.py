@@ -168,11 +168,11 @@ def test_completion_trains_with_the_geometric_terms(tmp_path):
     x0 = jnp.asarray(rng.normal(size=(2, 8, 135)), jnp.float32)
     aux = {"x0_hat": x0.at[..., :9].set(5.0), "t": jnp.zeros(2, jnp.int32)}
     mask = jnp.ones((2, 8), bool).at[1, 6:].set(False)
-    _, terms = task._geometric(jnp.float32(0.0), aux, x0, mask, jnp.zeros((2, 10)))
+    _, terms = task.geometric_terms(jnp.float32(0.0), aux, x0, mask, jnp.zeros((2, 10)))
     assert float(terms["joint"]) < 1e-10 and float(terms["joint_velocity"]) < 1e-8
     assert float(terms["foot_contact"]) < 0.04  # still feet move < 0.2 m/s by definition
     worse = {**aux, "x0_hat": x0 + 0.3 * jax.random.normal(jax.random.key(0), x0.shape)}
-    _, bad = task._geometric(jnp.float32(0.0), worse, x0, mask, jnp.zeros((2, 10)))
+    _, bad = task.geometric_terms(jnp.float32(0.0), worse, x0, mask, jnp.zeros((2, 10)))
     assert float(bad["joint"]) > 1e-4
     with pytest.raises(ValueError, match="only the completion model"):
         load_config("configs/trajectory.py", [*args, f"workdir={tmp_path / 't'}"])

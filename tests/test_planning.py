@@ -16,7 +16,7 @@ from jaxmotion.planning import (
     scene_path,
     trajectory_features,
 )
-from jaxmotion.planning.paths import END_RADIUS, WALK_RADIUS, _free_graph
+from jaxmotion.planning.paths import END_RADIUS, WALK_RADIUS, free_graph
 
 
 def _room(gap=True, seed=0):
@@ -82,13 +82,13 @@ def _dijkstra(free, start):
     return dist
 
 
-def test_free_graph_gives_the_walking_distances_of_a_plain_dijkstra():
+def testfree_graph_gives_the_walking_distances_of_a_plain_dijkstra():
     from scipy.sparse.csgraph import dijkstra
 
     rng = np.random.default_rng(3)
     free = rng.uniform(size=(14, 11)) > 0.3
     free[0, 0] = True
-    graph, node = _free_graph(free)
+    graph, node = free_graph(free)
     fast = np.full(free.shape, np.inf)
     fast[free] = dijkstra(graph, indices=node[0, 0])
     np.testing.assert_allclose(fast, _dijkstra(free, (0, 0)))

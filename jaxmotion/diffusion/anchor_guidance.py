@@ -316,10 +316,11 @@ def make_join_refiner(values, given, mean, std):
     but lets the model put the rest where it likes (a stand-up sampled 0.6 m from the seat
     it starts on, a sit facing away from where the walk before it faced): at every step this
     moves the predicted free frames so that they continue from the last given one. The
-    heading difference at that frame turns the free frames (orientation and path, about the
-    joint) by an angle fading over :data:`JOIN_TAPER` frames, as does the height difference;
-    the horizontal difference moves them as a whole (the model's own path, translated). Apply
-    it before anchor guidance (which then bends the end onto the target)."""
+    heading difference at that frame turns the free frames' orientation by an angle fading
+    over :data:`JOIN_TAPER` frames (the body turns on from where it faced), as does the height
+    difference; the horizontal difference moves them as a whole (the model's own path,
+    translated; turning the path too would sweep its far end round at several m/s). Apply it
+    before anchor guidance (which then bends the end onto the target)."""
     from jaxmotion.geometry.rotations import matrix_to_rotation_6d, rotation_6d_to_matrix
 
     given = jnp.asarray(given, bool)
@@ -345,9 +346,7 @@ def make_join_refiner(values, given, mean, std):
         rz = jnp.stack([jnp.stack([c, -s, jnp.zeros_like(c)], -1),
                         jnp.stack([s, c, jnp.zeros_like(c)], -1),
                         jnp.broadcast_to(jnp.array([0.0, 0.0, 1.0]), c.shape + (3,))], -2)
-        rel = x[..., :2] - own[:, None, :2]
-        xy = own[:, None, :2] + jnp.einsum("btij,btj->bti", rz[..., :2, :2], rel)
-        xy = xy + (prefix[None, None, :2] - own[:, None, :2]) * on
+        xy = x[..., :2] + (prefix[None, None, :2] - own[:, None, :2]) * on
         z = x[..., 2] + (prefix[2] - own[:, 2:3]) * on * fade[None]
         orient = matrix_to_rotation_6d(rz @ rotation_6d_to_matrix(x[..., 3:9]))
         out = jnp.concatenate([xy, z[..., None], orient], -1)

@@ -29,7 +29,7 @@ from scipy.spatial import cKDTree
 
 from jaxmotion.motion.planner import BODY_TOP, CELL, PlanningError, plan_path
 
-__all__ = ["PointGrid", "approach_point", "point_grid", "scene_path"]
+__all__ = ["PointGrid", "approach_point", "free_graph", "point_grid", "scene_path"]
 
 #: Body radius a walking path keeps from obstacles (m); the ends may come closer.
 WALK_RADIUS = 0.22
@@ -126,7 +126,7 @@ def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, flo
                             f"radius {radius} m (is the object against walls on every side?)")
     from scipy.sparse.csgraph import dijkstra
 
-    graph, cell_of = _free_graph(free)
+    graph, cell_of = free_graph(free)
     s = tuple(int(v) for v in grid.index(np.asarray(start, float)[None])[0])
     if not free[s]:  # from a seat: the nearest free cell
         ij = np.argwhere(free)
@@ -148,7 +148,7 @@ def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, flo
     return grid.centers(np.asarray(best)[None])[0]
 
 
-def _free_graph(free: np.ndarray):
+def free_graph(free: np.ndarray):
     """The 8-connected graph of the free cells (no corner cutting), as a sparse matrix with
     edge lengths in cells; and the map from cell index to node (-1 for blocked cells)."""
     from scipy.sparse import coo_matrix
@@ -179,7 +179,9 @@ def scene_path(grid: PointGrid, start, goal, *, radius: float = WALK_RADIUS,
                end_radius: float = END_RADIUS, end_zone: float = END_ZONE,
                step: float = 0.02) -> np.ndarray:
     """A smooth collision-free walking path ``[M,2]`` from ``start`` to ``goal`` (xy),
-    points ``step`` apart (:func:`jaxmotion.motion.planner.plan_path` on the point grid).
+    points ``step`` apart (:func:`jaxmotion.motion.planner.plan_path` on the point grid),
+    keeping ``radius`` from obstacles where it can: where only a narrower passage connects
+    the two, the path keeps less (down to ``end_radius``).
     A start inside furniture (getting up from a seat) moves to the nearest free place first.
     Raises :class:`PlanningError` with the reason."""
     start = np.asarray(start, float)
@@ -192,5 +194,12 @@ def scene_path(grid: PointGrid, start, goal, *, radius: float = WALK_RADIUS,
             raise PlanningError(f"the start {start.round(2).tolist()} is more than 1 m from "
                                 "free floor")
         start = near
-    return plan_path(grid, start, np.asarray(goal, float), radius=radius,
-                     end_radius=end_radius, end_zone=end_zone, step=step)
+    # a narrow passage: the body squeezes through (down to the clearance allowed at the ends)
+    radii = [r for r in (radius, 0.5 * (radius + end_radius), end_radius) if r <= radius]
+    for i, r in enumerate(radii):
+        try:
+            return plan_path(grid, start, np.asarray(goal, float), radius=r,
+                             end_radius=min(end_radius, r), end_zone=end_zone, step=step)
+        except PlanningError:
+            if i == len(radii) - 1:
+                raise

@@ -44,6 +44,8 @@ __all__ = ["PREFIX", "Step", "Story", "describe", "read_plan", "story_generation
 PREFIX = 10
 #: Frames over which consecutive windows of a walk crossfade the body, after the prefix.
 BLEND = 20
+#: The same for a sit / lie window after a walk.
+SIT_BLEND = 0
 #: A sit or lie farther than this (m, pelvis to the nearest point of the object) walks first,
 #: to a place :data:`SIT_REACH` from it.
 NEAR = 1.2
@@ -279,7 +281,7 @@ class _Teller:
         if not tgt.any():
             raise GenerateError(f"object {obj['id']} has no point in the crop around it")
         # a stand-up starts from the seated end as it is; after a walk the body crossfades
-        blend = 0 if action == "stand_up" else BLEND
+        blend = 0 if action == "stand_up" else SIT_BLEND
         pre, given = self.prefix(rot, shift, blend)
         out = np.asarray(self._sample(self.next_key(), pts, nrm, tgt, self.text(action, obj),
                                       action_index(action), pre, given))

@@ -176,9 +176,9 @@ class ObjectCentricTask(DataTask):
                                    feature_weights=self.weights, return_aux=True)
         if not any(self.geometric.values()):
             return loss, {}
-        return self._geometric(loss, aux, x0, mask, batch["betas"])
+        return self.geometric_terms(loss, aux, x0, mask, batch["betas"])
 
-    def _geometric(self, loss, aux, x0, mask, betas):
+    def geometric_terms(self, loss, aux, x0, mask, betas):
         """The x0 loss plus the weighted geometric terms on the forward kinematics of the
         predicted and the true clean motion (both through the same skeleton of ``betas``).
         The prediction's body rides on the true trajectory: the sampler replaces the

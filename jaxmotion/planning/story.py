@@ -46,11 +46,16 @@ PREFIX = 10
 BLEND = 20
 #: The same for a sit / lie window after a walk.
 SIT_BLEND = 0
+#: Motions drawn per sit / lie window, the plausible one nearest its object kept
+#: (:func:`jaxmotion.pipelines.affordance.select_motion`, as ``generate``'s best of M); a
+#: stand-up draws one (the brisk ones best of M avoids are the ones that get up in time).
+CANDIDATES = 4
 #: A sit or lie farther than this (m, pelvis to the nearest point of the object) walks first,
 #: to a place :data:`SIT_REACH` from it.
 NEAR = 1.2
 SIT_REACH = (0.5, 1.0)
 ACTIONS = ("walk", "sit", "stand_up", "lie")
+_STAND_UP = 2  # its index in jaxmotion.models.object_centric.ACTION_CLASSES
 _TAKES = {"sit": SEAT_CATEGORIES, "stand_up": SEAT_CATEGORIES, "lie": LIE_CATEGORIES}
 _TEXT = {"walk": "walk to the {}", "sit": "sit on the {}", "stand_up": "stand up from the {}",
          "lie": "lie down on the {}"}
@@ -204,16 +209,32 @@ class _Teller:
         pipe, sampler = self.pipe, steps_spec
         t = self.frames
 
-        def sample(k, p, n, tgt, e, a, pre, pf):
-            return pipe.sample_one(k, p, n, tgt, e, self.betas, jnp.ones(t, bool),
-                                   trajectory_spec=sampler, completion_spec=sampler, action=a,
-                                   prefix=pre, prefix_frames=pf)["motion"]
+        def sampler_of(m):  # best of m motions, as generate's
+            def sample(k, p, n, tgt, e, a, pre, pf):
+                from jaxmotion.pipelines.affordance import select_motion
+                from jaxmotion.pipelines.object_centric import BRISK_PELVIS_SPEED
+
+                def one(key):
+                    out = pipe.sample_one(key, p, n, tgt, e, self.betas, jnp.ones(t, bool),
+                                          trajectory_spec=sampler, completion_spec=sampler,
+                                          action=a, prefix=pre, prefix_frames=pf)
+                    return out["motion"], out["joints"]
+
+                motions, joints = jax.vmap(one)(jax.random.split(k, m))
+                best = select_motion(joints[None], p[None], tgt[None], jnp.ones((1, t), bool),
+                                     jnp.asarray([a == _STAND_UP]),
+                                     brisk_pelvis_speed=BRISK_PELVIS_SPEED,
+                                     return_index=True)[0]
+                return motions[best]
+
+            return jax.jit(sample)
 
         def complete(k, p, n, tgt, e, a, traj, mask, pre, pf):
             return pipe.complete_one(k, p, n, tgt, e, self.betas, traj, mask, spec=sampler,
                                      action=a, prefix=pre, prefix_frames=pf)["motion"]
 
-        self._sample, self._complete = jax.jit(sample), jax.jit(complete)
+        self._sample = {1: sampler_of(1), CANDIDATES: sampler_of(CANDIDATES)}
+        self._complete = jax.jit(complete)
         self._emb = {}
 
     def text(self, action, obj) -> np.ndarray:
@@ -283,8 +304,9 @@ class _Teller:
         # a stand-up starts from the seated end as it is; after a walk the body crossfades
         blend = 0 if action == "stand_up" else SIT_BLEND
         pre, given = self.prefix(rot, shift, blend)
-        out = np.asarray(self._sample(self.next_key(), pts, nrm, tgt, self.text(action, obj),
-                                      action_index(action), pre, given))
+        draw = self._sample[1 if action == "stand_up" else CANDIDATES]
+        out = np.asarray(draw(self.next_key(), pts, nrm, tgt, self.text(action, obj),
+                              action_index(action), pre, given))
         new = _to_scene(out, rot, shift)
         if action == "stand_up":  # up, then the next step walks: cut the model's walk-off
             new = new[:_stood_up(new[:, 2], float(new[0, 2]))]

@@ -443,8 +443,7 @@ class AffordancePipeline:
         return jax.vmap(carry_field)(points, view_points, view_maps)
 
 
-def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis_speed=None,
-                  return_index: bool = False):
+def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis_speed=None):
     """Of the candidates ``motions [B, M, T, 22, 3]`` of each example, the one whose body
     comes closest to ``target [B, N]`` (points of the target object among ``points
     [B, N, 3]``, same frame) at the anchor frame: the first valid frame of ``mask [B, T]``
@@ -454,8 +453,7 @@ def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis
     candidates does not; with ``brisk_pelvis_speed`` (m/s), nor is one whose pelvis moves
     faster than that while another's does not (a walk at a run, beyond the dataset's motions).
     An example with no target point keeps its first plausible candidate. Returns
-    ``[B, T, 22, 3]`` (``return_index``: the chosen candidates' indices ``[B]``); every
-    pipeline's best-of-M uses it."""
+    ``[B, T, 22, 3]``; every pipeline's best-of-M uses it."""
     from jaxmotion.eval.plausibility import teleports
 
     mask = jnp.asarray(mask, bool)
@@ -479,8 +477,6 @@ def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis
         tier = jnp.maximum(tier, brisk.astype(jnp.int32))
     best_tier = jnp.min(tier, axis=1, keepdims=True)  # only the best tier's candidates compete
     best = jnp.argmin(jnp.where(tier == best_tier, score, jnp.inf), axis=1)  # ties: the first
-    if return_index:
-        return best
     return jnp.take_along_axis(motions, best[:, None, None, None, None], axis=1)[:, 0]
 
 

@@ -38,7 +38,8 @@ import numpy as np
 from jaxmotion.errors import GenerateError
 from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
-__all__ = ["PREFIX", "Step", "Story", "describe", "read_plan", "story_generation", "tell"]
+__all__ = ["PREFIX", "Step", "Story", "choose", "describe", "read_plan", "story_generation",
+           "tell"]
 
 #: Frames of the previous motion each step or window starts from (held by inpainting).
 PREFIX = 10
@@ -46,9 +47,9 @@ PREFIX = 10
 BLEND = 20
 #: The same for a sit / lie window after a walk.
 SIT_BLEND = 0
-#: Motions drawn per sit / lie window, the plausible one nearest its object kept
-#: (:func:`jaxmotion.pipelines.affordance.select_motion`, as ``generate``'s best of M); a
-#: stand-up draws one (the brisk ones best of M avoids are the ones that get up in time).
+#: Motions drawn per sit / lie window, one kept by :func:`choose` (plausible, clear of other
+#: furniture, nearest its object); a stand-up draws one (the brisk ones best of M avoids
+#: are the ones that get up in time).
 CANDIDATES = 4
 #: A sit or lie farther than this (m, pelvis to the nearest point of the object) walks first,
 #: to a place :data:`SIT_REACH` from it.
@@ -173,6 +174,30 @@ def _to_scene(f, rot, shift):
     return out
 
 
+def choose(joints, points, target, others, anchor_first):
+    """The index of the candidate to keep of ``joints [M, T, 22, 3]`` (crop frame): as
+    ``generate``'s best of M (:func:`~jaxmotion.pipelines.affordance.select_motion`: never a
+    teleporting one while another is smooth, nor one faster than 2 m/s while another is not),
+    then the fewest frames with a joint within 5 cm of the ``others`` points (furniture
+    that is not the target), then the body closest to the ``target`` points at the anchor
+    frame (the first with ``anchor_first``, else the last)."""
+    from jaxmotion.eval.plausibility import teleports
+    from jaxmotion.pipelines.object_centric import BRISK_PELVIS_SPEED
+
+    jumps = teleports(joints)
+    brisk = teleports(joints, teleport_pelvis_speed=BRISK_PELVIS_SPEED)
+    d = jnp.linalg.norm(joints[:, :, :, None] - points[None, None, None], axis=-1)  # M,T,J,N
+    hits = jnp.sum(jnp.any(jnp.where(others[None, None, None], d, jnp.inf) < 0.05,
+                           axis=(2, 3)), axis=1)
+    pose = jnp.where(anchor_first, joints[:, 0], joints[:, -1])  # [M, 22, 3]
+    near = jnp.linalg.norm(pose[:, :, None] - points[None, None], axis=-1)
+    score = jnp.min(jnp.where(target[None, None], near, jnp.inf), axis=(1, 2))
+    score = jnp.where(jnp.isfinite(score), score, 0.0)
+    rank = (jumps.astype(jnp.int32) * 2 + brisk.astype(jnp.int32)) * 1000 + jnp.minimum(hits,
+                                                                                        999)
+    return jnp.argmin(jnp.where(rank == jnp.min(rank), score, jnp.inf))
+
+
 def _stood_up(pelvis_z, seated: float, hold: int = 15) -> int:
     """Frames of a stand-up to keep: until ``hold`` frames after the pelvis has risen 90 % of
     the way from ``seated`` to the standing height (all of them if it never does)."""
@@ -209,11 +234,8 @@ class _Teller:
         pipe, sampler = self.pipe, steps_spec
         t = self.frames
 
-        def sampler_of(m):  # best of m motions, as generate's
-            def sample(k, p, n, tgt, e, a, pre, pf):
-                from jaxmotion.pipelines.affordance import select_motion
-                from jaxmotion.pipelines.object_centric import BRISK_PELVIS_SPEED
-
+        def sampler_of(m):  # best of m motions
+            def sample(k, p, n, tgt, others, e, a, pre, pf):
                 def one(key):
                     out = pipe.sample_one(key, p, n, tgt, e, self.betas, jnp.ones(t, bool),
                                           trajectory_spec=sampler, completion_spec=sampler,
@@ -221,11 +243,7 @@ class _Teller:
                     return out["motion"], out["joints"]
 
                 motions, joints = jax.vmap(one)(jax.random.split(k, m))
-                best = select_motion(joints[None], p[None], tgt[None], jnp.ones((1, t), bool),
-                                     jnp.asarray([a == _STAND_UP]),
-                                     brisk_pelvis_speed=BRISK_PELVIS_SPEED,
-                                     return_index=True)[0]
-                return motions[best]
+                return motions[choose(joints, p, tgt, others, a == _STAND_UP)]
 
             return jax.jit(sample)
 
@@ -248,15 +266,24 @@ class _Teller:
             self._emb[sentence] = np.asarray(pooled_text(emb), np.float32)[0]
         return self._emb[sentence]
 
-    def crop(self, centre, oid):
+    def crop(self, centre, oid, others=False):
+        """The crop around ``centre``: points, normals, the object ``oid``'s mask, the crop
+        frame (``rot``, ``shift``) and, with ``others``, the mask of the other objects' points
+        a body must keep out of (above 0.1 m; doors, windows and walls aside)."""
         from jaxmotion.data.crop import crop_at
 
         rng = np.random.default_rng([self.seed, 7, self.windows])
         pick, pts, shift, rot = crop_at(rng, self.scene.xyz, np.asarray(centre, float),
                                         self.spec)
         normals = (np.asarray(self.scene.normal[pick], np.float32) @ rot.T).astype(np.float32)
-        return (pts.astype(np.float32), normals, self.scene.instance[pick] == oid,
-                rot.astype(np.float32), shift.astype(np.float32))
+        inst = self.scene.instance[pick]
+        out = (pts.astype(np.float32), normals, inst == oid, rot.astype(np.float32),
+               shift.astype(np.float32))
+        if not others:
+            return out
+        solid = [o["id"] for o in self.scene.objects
+                 if o["category"] not in ("door", "window", "picture", "curtain", "rug")]
+        return (*out, np.isin(inst, solid) & (inst != oid) & (pts[:, 2] > 0.1))
 
     def next_key(self):
         self.windows += 1
@@ -297,15 +324,15 @@ class _Teller:
         from jaxmotion.pipelines.object_centric import action_index
 
         lo, hi = self.scene.xyz[:, :2].min(0), self.scene.xyz[:, :2].max(0)
-        pts, nrm, tgt, rot, shift = self.crop(centre_on_object(obj, lo, hi, self.spec.size),
-                                              obj["id"])
+        pts, nrm, tgt, rot, shift, others = self.crop(
+            centre_on_object(obj, lo, hi, self.spec.size), obj["id"], others=True)
         if not tgt.any():
             raise GenerateError(f"object {obj['id']} has no point in the crop around it")
         # a stand-up starts from the seated end as it is; after a walk the body crossfades
         blend = 0 if action == "stand_up" else SIT_BLEND
         pre, given = self.prefix(rot, shift, blend)
         draw = self._sample[1 if action == "stand_up" else CANDIDATES]
-        out = np.asarray(draw(self.next_key(), pts, nrm, tgt, self.text(action, obj),
+        out = np.asarray(draw(self.next_key(), pts, nrm, tgt, others, self.text(action, obj),
                               action_index(action), pre, given))
         new = _to_scene(out, rot, shift)
         if action == "stand_up":  # up, then the next step walks: cut the model's walk-off

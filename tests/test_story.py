@@ -141,3 +141,24 @@ def test_the_command_line_takes_a_plan_file(tmp_path, capsys):
     assert main(["generate", "--plan", str(tmp_path / "none.json"), "--out",
                  str(tmp_path / "o")]) != 0
     assert "no such file" in capsys.readouterr().err
+
+
+def test_choose_prefers_plausible_then_clear_of_furniture_then_nearest():
+    from jaxmotion.planning.story import choose
+
+    t = 40
+    walk = np.zeros((t, 22, 3), np.float32)
+    walk[:, :, 0] = np.linspace(0, 1.0, t)[:, None]  # 0.75 m/s
+    walk[:, :, 2] = np.linspace(0.1, 1.6, 22)[None]
+    jump = walk.copy()
+    jump[20:, :, 0] += 1.0  # 1 m in one frame: a teleport
+    near = walk.copy()
+    near[:, :, 1] += 0.3
+    points = np.array([[1.0, 0.3, 0.5], [0.5, 0.0, 0.5]], np.float32)  # a target, furniture
+    target, others = np.array([True, False]), np.array([False, True])
+    cands = np.stack([jump, near, walk])  # walk passes through the furniture point
+    got = int(choose(jnp.asarray(cands), points, target, others, False))
+    assert got == 1, got  # not the teleport; clear of furniture over nearer the target
+    got = int(choose(jnp.asarray(np.stack([jump, walk])), points, target, np.zeros(2, bool),
+                     False))
+    assert got == 1  # no furniture: the plausible one

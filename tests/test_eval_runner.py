@@ -128,7 +128,8 @@ def test_interval_is_the_normal_95_percent_half_width():
     assert mean_ci95([np.nan])["mean"] is None and mean_ci95([5.0])["ci95"] == 0.0
 
 
-@pytest.mark.parametrize("body", [False, True])
+# body=True (SMPL-X-fitted bodies, ~100 s on 2 cores) runs with -m slow
+@pytest.mark.parametrize("body", [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_runner_over_tiny_runs(tiny_runs, tmp_path, body):
     from jaxmotion.cli import main
 

@@ -129,6 +129,7 @@ def test_bad_input_is_a_clear_error(ckpt, kwargs, match):
         jaxmotion.generate(args.pop("scene"), args.pop("text"), checkpoints=ckpt, **args)
 
 
+@pytest.mark.slow  # ~50 s on 2 cores: two more generate calls
 def test_guidance_per_stage(result, ckpt):
     """One scale sets both stages, a pair sets each; the scales change the motion (the ADM's
     scale also its maps) and are recorded; an AMDM-only scale leaves the ADM maps as they were."""

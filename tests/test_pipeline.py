@@ -42,6 +42,7 @@ def test_amdm_resumes(runs):
     assert res.resumed_from == 30 and res.step == 35
 
 
+@pytest.mark.slow  # ~40 s on 2 cores
 def test_adm_selection_by_grounding(runs, tmp_path):
     """grounding_every: the run logs the grounding of the EMA ADM's maps on fixed val crops and
     exports the best weights to model_best.safetensors (best.json), which load like any ADM and

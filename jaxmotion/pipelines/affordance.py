@@ -443,7 +443,12 @@ class AffordancePipeline:
         return jax.vmap(carry_field)(points, view_points, view_maps)
 
 
-def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis_speed=None):
+#: A joint closer than this (m) to a point of ``select_motion``'s ``avoid`` touches it.
+AVOID_DISTANCE = 0.05
+
+
+def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis_speed=None,
+                  avoid=None, return_index: bool = False):
     """Of the candidates ``motions [B, M, T, 22, 3]`` of each example, the one whose body
     comes closest to ``target [B, N]`` (points of the target object among ``points
     [B, N, 3]``, same frame) at the anchor frame: the first valid frame of ``mask [B, T]``
@@ -452,8 +457,11 @@ def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis
     (:func:`jaxmotion.eval.plausibility.teleports`) is never kept while one of its example's
     candidates does not; with ``brisk_pelvis_speed`` (m/s), nor is one whose pelvis moves
     faster than that while another's does not (a walk at a run, beyond the dataset's motions).
-    An example with no target point keeps its first plausible candidate. Returns
-    ``[B, T, 22, 3]``; every pipeline's best-of-M uses it."""
+    With ``avoid [B, N]`` (points a body must keep out of: furniture that is not the target),
+    among the candidates of the best of those tiers the ones with the fewest frames where a
+    joint is within :data:`AVOID_DISTANCE` of such a point compete. An example with no target
+    point keeps its first plausible candidate. Returns ``[B, T, 22, 3]`` (``return_index``:
+    the chosen candidates' indices ``[B]``); every pipeline's best-of-M uses it."""
     from jaxmotion.eval.plausibility import teleports
 
     mask = jnp.asarray(mask, bool)
@@ -475,8 +483,17 @@ def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis
                           jnp.repeat(mask, m, axis=0),
                           teleport_pelvis_speed=brisk_pelvis_speed).reshape(b, m)
         tier = jnp.maximum(tier, brisk.astype(jnp.int32))
+    if avoid is not None:  # then the fewest frames touching furniture: the rank under the tier
+        near = jnp.linalg.norm(motions[:, :, :, :, None] - jnp.asarray(points)[:, None, None,
+                                                                            None], axis=-1)
+        off = ~jnp.asarray(avoid, bool)[:, None, None, None]  # [B,1,1,1,N]
+        touch = jnp.any(jnp.where(off, jnp.inf, near) < AVOID_DISTANCE, axis=(3, 4)) & mask[
+            :, None]
+        tier = tier * 1000 + jnp.minimum(jnp.sum(touch, axis=2), 999)
     best_tier = jnp.min(tier, axis=1, keepdims=True)  # only the best tier's candidates compete
     best = jnp.argmin(jnp.where(tier == best_tier, score, jnp.inf), axis=1)  # ties: the first
+    if return_index:
+        return best
     return jnp.take_along_axis(motions, best[:, None, None, None, None], axis=1)[:, 0]
 
 

@@ -175,27 +175,19 @@ def _to_scene(f, rot, shift):
 
 
 def choose(joints, points, target, others, anchor_first):
-    """The index of the candidate to keep of ``joints [M, T, 22, 3]`` (crop frame): as
+    """The index of the candidate to keep of ``joints [M, T, 22, 3]`` (crop frame):
     ``generate``'s best of M (:func:`~jaxmotion.pipelines.affordance.select_motion`: never a
     teleporting one while another is smooth, nor one faster than 2 m/s while another is not),
-    then the fewest frames with a joint within 5 cm of the ``others`` points (furniture
-    that is not the target), then the body closest to the ``target`` points at the anchor
-    frame (the first with ``anchor_first``, else the last)."""
-    from jaxmotion.eval.plausibility import teleports
+    then the fewest frames with a joint within 5 cm of the ``others`` points (furniture that
+    is not the target), then the body closest to the ``target`` points at the anchor frame
+    (the first with ``anchor_first``, else the last)."""
+    from jaxmotion.pipelines.affordance import select_motion
     from jaxmotion.pipelines.object_centric import BRISK_PELVIS_SPEED
 
-    jumps = teleports(joints)
-    brisk = teleports(joints, teleport_pelvis_speed=BRISK_PELVIS_SPEED)
-    d = jnp.linalg.norm(joints[:, :, :, None] - points[None, None, None], axis=-1)  # M,T,J,N
-    hits = jnp.sum(jnp.any(jnp.where(others[None, None, None], d, jnp.inf) < 0.05,
-                           axis=(2, 3)), axis=1)
-    pose = jnp.where(anchor_first, joints[:, 0], joints[:, -1])  # [M, 22, 3]
-    near = jnp.linalg.norm(pose[:, :, None] - points[None, None], axis=-1)
-    score = jnp.min(jnp.where(target[None, None], near, jnp.inf), axis=(1, 2))
-    score = jnp.where(jnp.isfinite(score), score, 0.0)
-    rank = (jumps.astype(jnp.int32) * 2 + brisk.astype(jnp.int32)) * 1000 + jnp.minimum(hits,
-                                                                                        999)
-    return jnp.argmin(jnp.where(rank == jnp.min(rank), score, jnp.inf))
+    return select_motion(joints[None], points[None], target[None],
+                         jnp.ones((1, joints.shape[1]), bool), jnp.asarray(anchor_first)[None],
+                         brisk_pelvis_speed=BRISK_PELVIS_SPEED, avoid=others[None],
+                         return_index=True)[0]
 
 
 def _stood_up(pelvis_z, seated: float, hold: int = 15) -> int:

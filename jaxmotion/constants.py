@@ -6,14 +6,18 @@
 - :data:`AFFORDANCE_JOINTS`, :data:`AFFORDANCE_SIGMA`: the affordance map's six joints (pelvis,
   feet, neck, wrists) and its Gaussian width σ = 0.8 m (paper eq. 1–2).
 - :data:`TEXT_ENCODER`: the sentence encoder every model here reads (all-MiniLM-L6-v2).
+- :data:`FOOT_JOINTS`: the foot joints of foot skating and foot contact (left / right ankle,
+  left / right foot).
 """
 
 from __future__ import annotations
 
-__all__ = ["AFFORDANCE_JOINTS", "AFFORDANCE_SIGMA", "NUM_JOINTS", "SCENE_FPS", "TEXT_ENCODER"]
+__all__ = ["AFFORDANCE_JOINTS", "AFFORDANCE_SIGMA", "FOOT_JOINTS", "NUM_JOINTS", "SCENE_FPS",
+           "TEXT_ENCODER"]
 
 SCENE_FPS: float = 30.0
 NUM_JOINTS: int = 22
 AFFORDANCE_JOINTS: tuple[int, ...] = (0, 10, 11, 12, 20, 21)
 AFFORDANCE_SIGMA: float = 0.8
 TEXT_ENCODER: str = "minilm"
+FOOT_JOINTS: tuple[int, ...] = (7, 8, 10, 11)

@@ -321,7 +321,11 @@ def make_join_refiner(values, given, mean, std):
     difference; the horizontal difference moves them as a whole (the model's own path,
     translated; turning the path too would sweep its far end round at several m/s). Apply it
     before anchor guidance (which then bends the end onto the target)."""
-    from jaxmotion.geometry.rotations import matrix_to_rotation_6d, rotation_6d_to_matrix
+    from jaxmotion.geometry.rotations import (
+        matrix_to_rotation_6d,
+        rotate_about_z,
+        rotation_6d_to_matrix,
+    )
 
     given = jnp.asarray(given, bool)
     n = jnp.sum(given.astype(jnp.int32))
@@ -341,11 +345,7 @@ def make_join_refiner(values, given, mean, std):
         own = x[:, last]  # [B, 9]: where the model has the last given frame
         on = (n > 0).astype(jnp.float32)
         turn = jnp.angle(jnp.exp(1j * (yaw(prefix[3:9]) - yaw(own[:, 3:9])))) * on  # [B]
-        ang = turn[:, None] * fade[None]  # [B, T]
-        c, s = jnp.cos(ang), jnp.sin(ang)
-        rz = jnp.stack([jnp.stack([c, -s, jnp.zeros_like(c)], -1),
-                        jnp.stack([s, c, jnp.zeros_like(c)], -1),
-                        jnp.broadcast_to(jnp.array([0.0, 0.0, 1.0]), c.shape + (3,))], -2)
+        rz = rotate_about_z(turn[:, None] * fade[None])  # [B, T, 3, 3]
         xy = x[..., :2] + (prefix[None, None, :2] - own[:, None, :2]) * on
         z = x[..., 2] + (prefix[2] - own[:, 2:3]) * on * fade[None]
         orient = matrix_to_rotation_6d(rz @ rotation_6d_to_matrix(x[..., 3:9]))

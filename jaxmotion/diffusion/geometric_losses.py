@@ -23,10 +23,9 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-__all__ = ["acceleration_loss", "foot_contact_loss", "joint_position_loss", "velocity_loss"]
+from jaxmotion.constants import FOOT_JOINTS
 
-#: Foot joints of the contact term: left/right ankle and left/right foot (SMPL-X indices).
-FOOT_JOINTS: tuple[int, ...] = (7, 8, 10, 11)
+__all__ = ["acceleration_loss", "foot_contact_loss", "joint_position_loss", "velocity_loss"]
 
 
 def _pairs(mask, lag: int):

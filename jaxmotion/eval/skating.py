@@ -29,12 +29,11 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from jaxmotion.constants import FOOT_JOINTS  # l_ankle, r_ankle, l_foot, r_foot (SMPL-X)
 from jaxmotion.eval._common import as_mask, masked_mean, require_any, safe_norm
 
 __all__ = ["FOOT_FLOOR_OFFSETS", "FOOT_JOINTS", "foot_skating"]
 
-#: Foot joints tested: l_ankle, r_ankle, l_foot, r_foot (SMPL-X indices).
-FOOT_JOINTS: tuple[int, ...] = (7, 8, 10, 11)
 #: Height (m) of each of :data:`FOOT_JOINTS` above the floor when the foot is flat.
 FOOT_FLOOR_OFFSETS: tuple[float, ...] = (0.07, 0.07, 0.025, 0.025)
 

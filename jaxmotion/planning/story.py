@@ -55,6 +55,8 @@ CANDIDATES = 4
 #: to a place :data:`SIT_REACH` from it.
 NEAR = 1.2
 SIT_REACH = (0.5, 1.0)
+#: How far from its object a walk step ends (m).
+WALK_REACH = (0.3, 0.6)
 ACTIONS = ("walk", "sit", "stand_up", "lie")
 _STAND_UP = 2  # its index in jaxmotion.models.object_centric.ACTION_CLASSES
 _TAKES = {"sit": SEAT_CATEGORIES, "stand_up": SEAT_CATEGORIES, "lie": LIE_CATEGORIES}
@@ -190,12 +192,20 @@ def choose(joints, points, target, others, anchor_first):
                          return_index=True)[0]
 
 
-def _stood_up(pelvis_z, seated: float, hold: int = 15) -> int:
-    """Frames of a stand-up to keep: until ``hold`` frames after the pelvis has risen 90 % of
-    the way from ``seated`` to the standing height (all of them if it never does)."""
-    from jaxmotion.diffusion.anchor_guidance import standing_height
+def _goal(grid, scene, obj, start, action):
+    """Where a walk from ``start`` (xy) for ``action`` on ``obj`` ends: within reach of it
+    (:data:`SIT_REACH` before a sit or lie), in front of it when it has a ``front``."""
+    from jaxmotion.planning.paths import approach_point
 
-    up = seated + 0.9 * (float(standing_height(None)) - seated)
+    reach = SIT_REACH if action in ("sit", "lie") else WALK_REACH
+    return approach_point(grid, scene.xyz[scene.instance == obj["id"], :2], start, reach=reach,
+                          front=obj.get("front"))
+
+
+def _stood_up(pelvis_z, seated: float, stand: float, hold: int = 15) -> int:
+    """Frames of a stand-up to keep: until ``hold`` frames after the pelvis has risen 90 % of
+    the way from ``seated`` to ``stand`` (the standing height; all of them if it never does)."""
+    up = seated + 0.9 * (stand - seated)
     risen = np.flatnonzero(np.asarray(pelvis_z) >= up)
     return len(pelvis_z) if not len(risen) else min(len(pelvis_z), int(risen[0]) + hold)
 
@@ -209,12 +219,14 @@ def _heading(six) -> float:
 class _Teller:
     """The state of one story being told (models, compiled steps, the motion so far)."""
 
-    def __init__(self, scene, files, seed, steps_spec, progress):
+    def __init__(self, scene, files, seed, steps_spec):
         from jaxmotion.data.crop import crop_spec_from_config
+        from jaxmotion.diffusion.anchor_guidance import standing_height
         from jaxmotion.models.weights import read_config
         from jaxmotion.pipelines.object_centric import load_object_pipeline
 
-        self.scene, self.seed, self.progress = scene, int(seed), progress
+        self.scene, self.seed = scene, int(seed)
+        self.stand = float(standing_height(None))  # the neutral body's standing pelvis height
         self.pipe = load_object_pipeline(str(files[0]), str(files[1]))
         cfg = read_config(files[1])
         self.spec, self.frames = crop_spec_from_config(cfg), int(cfg["max_frames"])
@@ -328,20 +340,18 @@ class _Teller:
                               action_index(action), pre, given))
         new = _to_scene(out, rot, shift)
         if action == "stand_up":  # up, then the next step walks: cut the model's walk-off
-            new = new[:_stood_up(new[:, 2], float(new[0, 2]))]
+            new = new[:_stood_up(new[:, 2], float(new[0, 2]), self.stand)]
         self.join(new, action, obj["id"], blend)
 
-    def walk_to(self, obj, grid, reach=(0.3, 0.6)):
-        """walk: a planned path to within ``reach`` of the object, the body written along it
-        window by window."""
+    def walk_to(self, obj, grid, action="walk"):
+        """A planned path to the object (:func:`_goal` of ``action``, the step it walks for),
+        the body written along it window by window."""
         from jaxmotion.pipelines.object_centric import action_index
-        from jaxmotion.planning.paths import approach_point, scene_path
+        from jaxmotion.planning.paths import scene_path
         from jaxmotion.planning.trajectory import path_trajectory
 
         here = self.motion[-1]
-        pts_xy = self.scene.xyz[self.scene.instance == obj["id"], :2]
-        goal = approach_point(grid, pts_xy, here[:2], reach=reach, front=obj.get("front"))
-        path = scene_path(grid, here[:2], goal)
+        path = scene_path(grid, here[:2], _goal(grid, self.scene, obj, here[:2], action))
         if np.linalg.norm(path[0] - here[:2]) > 1e-3:  # off the seat first
             path = np.concatenate([here[None, :2], path])
         centre = 0.5 * (np.asarray(obj["bbox_min"][:2]) + np.asarray(obj["bbox_max"][:2]))
@@ -349,11 +359,8 @@ class _Teller:
         traj = path_trajectory(path, start_heading=_heading(here[3:9]), end_heading=face,
                                height=float(here[2]))
         # the pelvis height eases from where it is to the standing height of the walk
-        from jaxmotion.diffusion.anchor_guidance import standing_height
-
-        stand = float(standing_height(None))
         ease = np.clip(np.arange(len(traj)) / 15.0, 0.0, 1.0)
-        traj[:, 2] = here[2] + (stand - here[2]) * ease * ease * (3 - 2 * ease)
+        traj[:, 2] = here[2] + (self.stand - here[2]) * ease * ease * (3 - 2 * ease)
         lead = PREFIX + BLEND  # the previous motion's frames the walk starts over
         full = np.concatenate([self.motion[-lead:, :9], traj[1:]])  # scene frame
         n, t = len(full), self.frames
@@ -401,12 +408,13 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
         shipped ones).
       steps, guidance: the DDIM steps and text guidance of both stages.
     """
+    from jaxmotion.constants import SCENE_FPS
     from jaxmotion.diffusion.samplers import SamplerSpec
     from jaxmotion.grounding.objects import object_table
     from jaxmotion.motion.planner import PlanningError
     from jaxmotion.motion.representation import motion_to_joints
     from jaxmotion.pipelines.checkpoints import resolve_object_checkpoints
-    from jaxmotion.planning.paths import approach_point, point_grid
+    from jaxmotion.planning.paths import point_grid
     from jaxmotion.scene.demo import load_scene_arg
 
     scene = load_scene_arg(scene)
@@ -418,14 +426,15 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
     for i, step in enumerate(plan, 1):
         if step.action == "stand_up":
             continue
-        pts = scene.xyz[scene.instance == step.object, :2]
+        obj = objects[step.object]
         try:
-            start = where if where is not None else pts.mean(0)
-            where = approach_point(grid, pts, start)
+            start = where if where is not None else scene.xyz[scene.instance == obj["id"],
+                                                              :2].mean(0)
+            where = _goal(grid, scene, obj, start, step.action)
         except PlanningError as e:
             raise GenerateError(f"step {i} ({step.action} on object {step.object}): {e}") from e
     files = resolve_object_checkpoints(files)
-    teller = _Teller(scene, files, seed, SamplerSpec("ddim", steps, guidance=guidance), progress)
+    teller = _Teller(scene, files, seed, SamplerSpec("ddim", steps, guidance=guidance))
     for i, step in enumerate(plan, 1):
         obj = objects[step.object]
         if progress:
@@ -438,12 +447,12 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
             if step.action in ("sit", "lie") and teller.motion is not None:
                 pts = scene.xyz[scene.instance == step.object, :2]
                 if np.min(np.linalg.norm(pts - teller.motion[-1, :2], axis=1)) > NEAR:
-                    teller.walk_to(obj, grid, SIT_REACH)
+                    teller.walk_to(obj, grid, step.action)
             teller.on_object(step.action, obj)
         except PlanningError as e:
             raise GenerateError(f"step {i} ({step.action} on object {step.object}): {e}") from e
     joints = np.asarray(motion_to_joints(jnp.asarray(teller.motion), teller.betas))
-    return Story(teller.motion, joints, 30.0, teller.segments, teller.paths)
+    return Story(teller.motion, joints, SCENE_FPS, teller.segments, teller.paths)
 
 
 def describe(plan, scene) -> str:

@@ -346,7 +346,6 @@ class _Teller:
     def walk_to(self, obj, grid, action="walk"):
         """A planned path to the object (:func:`_goal` of ``action``, the step it walks for),
         the body written along it window by window."""
-        from jaxmotion.pipelines.object_centric import action_index
         from jaxmotion.planning.paths import scene_path
         from jaxmotion.planning.trajectory import path_trajectory
 
@@ -363,19 +362,39 @@ class _Teller:
         traj[:, 2] = here[2] + (self.stand - here[2]) * ease * ease * (3 - 2 * ease)
         lead = PREFIX + BLEND  # the previous motion's frames the walk starts over
         full = np.concatenate([self.motion[-lead:, :9], traj[1:]])  # scene frame
+        seg = self.along(full, lead, obj["id"], self.text("walk", obj))
+        self.paths.append(path)
+        first = len(self.motion) - BLEND  # seg[PREFIX:lead]: the last motion's end, crossfaded
+        self.segments[-1]["last"] = first - 1
+        self.motion = np.concatenate([self.motion[:-BLEND], seg[PREFIX:]])
+        self.segments.append({"action": "walk", "object": obj["id"], "first": first,
+                              "last": len(self.motion) - 1})
+
+    def along(self, full, lead, oid, emb):
+        """The body written along the root trajectory ``full [n, 9]`` (scene frame) by the
+        completion model (a walk: the pelvis follows ``full`` exactly), in overlapping
+        windows, each crop centred on its stretch of the path. Its first ``lead`` frames are
+        the motion so far's last ones (kept; 0: a motion from nothing). ``oid``: the object
+        the walk heads for (its target sensor; -1: none); ``emb``: the text embedding.
+        Returns ``[n, 135]`` features, scene frame."""
+        from jaxmotion.pipelines.object_centric import action_index
+
+        act = action_index("walk")
         n, t = len(full), self.frames
         seg = np.zeros((n, 135), np.float32)
-        seg[:lead] = self.motion[-lead:]
-        emb, act = self.text("walk", obj), action_index("walk")
+        if lead:
+            seg[:lead] = self.motion[-lead:]
         s, done = 0, lead  # window start; frames of seg written so far
         while True:
             stop = min(s + t, n)
             win = np.concatenate([full[s:stop], np.repeat(full[stop - 1:stop], t - (stop - s),
                                                           axis=0)])
-            pts, nrm, tgt, rot, shift = self.crop(win[: stop - s, :2].mean(0), obj["id"])
+            pts, nrm, tgt, rot, shift = self.crop(win[: stop - s, :2].mean(0), oid)
             pre = np.zeros((t, 135), np.float32)
-            pre[:PREFIX] = _to_crop(seg[s:s + PREFIX], rot, shift)
-            given = np.arange(t) < PREFIX
+            given = np.zeros(t, bool)
+            if done > s:  # the frames already written that this window starts from
+                pre[:PREFIX] = _to_crop(seg[s:s + PREFIX], rot, shift)
+                given[:PREFIX] = True
             mask = np.arange(t) < stop - s
             out = np.asarray(self._complete(self.next_key(), pts, nrm, tgt, emb, act,
                                             _to_crop(win, rot, shift), mask, pre, given))
@@ -387,15 +406,8 @@ class _Teller:
             seg[s:stop] = new
             done = stop
             if stop == n:
-                break
+                return seg
             s = stop - PREFIX - BLEND
-        self.paths.append(path)
-        first = len(self.motion) - BLEND  # seg[PREFIX:lead]: the last motion's end, crossfaded
-        self.segments[-1]["last"] = first - 1
-        self.motion = np.concatenate([self.motion[:-BLEND], seg[PREFIX:]])
-        self.segments.append({"action": "walk", "object": obj["id"], "first": first,
-                              "last": len(self.motion) - 1})
-
 
 def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
          guidance: float = 1.0, progress: bool = False) -> Story:

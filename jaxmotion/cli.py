@@ -192,6 +192,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
             raise FileNotFoundError(f"--scene {args.scene}: no such file; give a mesh or point "
                                     "cloud (PLY / OBJ / GLB / GLTF / OFF / STL / NPZ) or 'demo'")
     text = DEFAULT_TEXT if args.text is None else args.text
+    trajectory = None
     if args.plan is not None:
         if args.text is not None:
             raise ValueError("give --text (one instruction) or --plan (a story), not both")
@@ -202,11 +203,19 @@ def _cmd_generate(args: argparse.Namespace) -> int:
                                     'steps such as [{"action": "stand_up", "object": 3}, '
                                     '{"action": "walk", "object": 4}]')
         text = f"the story in {args.plan}"
+    if args.trajectory is not None:
+        if args.plan is not None:
+            raise ValueError("give --plan (a story) or --trajectory (a path to follow), not both")
+        from jaxmotion.planning.control import check_path, load_path
+
+        trajectory = check_path(load_path(args.trajectory))  # a bad file fails before loading
+        text = "walk along the path" if args.text is None else args.text
     print(f"generating {options.samples} motion(s) for {text!r} in {args.scene} ...",
           file=sys.stderr, flush=True)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
-        res = generate(args.scene, text, options=options, progress=True, plan=args.plan)
+        res = generate(args.scene, text, options=options, progress=True, plan=args.plan,
+                       trajectory=trajectory)
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
     t1 = time.perf_counter()
@@ -377,6 +386,10 @@ def build_parser() -> argparse.ArgumentParser:
                    '`jaxmotion scene info` lists them), e.g. [{"action": "stand_up", "object": '
                    '3}, {"action": "walk", "object": 4}, {"action": "sit", "object": 7}]; one '
                    "motion, walks on planned paths, written with its segments")
+    p.add_argument("--trajectory", default=None, metavar="PATH.npy",
+                   help="trajectory control: the pelvis follows this ground path, a .npy array "
+                   "[T, 2] (or a .csv of x, y lines) per frame at 30 fps in the scene's frame, "
+                   "metres; --text says the manner (default: walk along the path)")
     p.add_argument("--object", type=int, default=None,
                    help="target object's instance id (skips finding it from the text)")
     p.add_argument("--samples", type=int, default=None, help="motions to sample (K, default 1)")

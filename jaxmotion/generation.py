@@ -100,7 +100,7 @@ def _check_models(checkpoints, object_checkpoints=None, pipeline="auto") -> _Mod
 
 
 def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None = None,
-             progress: bool = False, plan=None, **overrides) -> Generation:
+             progress: bool = False, plan=None, trajectory=None, **overrides) -> Generation:
     """Generate motions of a person doing ``text`` in ``scene``.
 
     Args:
@@ -112,17 +112,17 @@ def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None
         ``motion_candidates``, ``checkpoints``, ``num_points``, ``fit``, ``fit_iters``,
         ``aot``; None = the default), which also override ``options``' fields.
       progress: print the stages with their times (to stderr).
-      plan: a story instead of ``text``: steps ``{"action", "object"}`` on object ids (or a
-        JSON file of them), joined into one motion (:mod:`jaxmotion.planning.story`).
+      plan, trajectory: a story (steps on object ids, or their JSON file) or a ground path to
+        follow (``[T, 2]`` at 30 fps, or a .npy / .csv) instead of one clip (:mod:`.planning`).
     Raises:
       GenerateError: bad text, scene, object id, options or checkpoints (the message names
         the fix), before any model is loaded.
     """
     opts = (GenerateOptions.build(**overrides) if options is None else dataclasses.replace(
         options, **{k: v for k, v in overrides.items() if v is not None}))
-    if plan is not None:
-        from jaxmotion.planning.story import story_generation
-        return story_generation(scene, plan, opts, progress)
+    if plan is not None or trajectory is not None:  # a story, or a path to follow
+        from jaxmotion.planning.control import planned_generation
+        return planned_generation(scene, text, opts, progress, plan=plan, trajectory=trajectory)
     from jaxmotion.text.condition import check_text
     models = _check_models(opts.checkpoints, opts.object_checkpoints, opts.pipeline)
     text = check_text(text)

@@ -38,8 +38,8 @@ import numpy as np
 from jaxmotion.errors import GenerateError
 from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
-__all__ = ["PREFIX", "Step", "Story", "choose", "describe", "read_plan", "story_generation",
-           "tell"]
+__all__ = ["PASSABLE", "PREFIX", "Step", "Story", "Teller", "choose", "describe", "read_plan",
+           "story_generation", "story_result", "tell"]
 
 #: Frames of the previous motion each step or window starts from (held by inpainting).
 PREFIX = 10
@@ -58,6 +58,8 @@ SIT_REACH = (0.5, 1.0)
 #: How far from its object a walk step ends (m).
 WALK_REACH = (0.3, 0.6)
 ACTIONS = ("walk", "sit", "stand_up", "lie")
+#: Object categories a body may touch on its way (not furniture to keep out of).
+PASSABLE = ("door", "window", "picture", "curtain", "rug")
 _STAND_UP = 2  # its index in jaxmotion.models.object_centric.ACTION_CLASSES
 _TAKES = {"sit": SEAT_CATEGORIES, "stand_up": SEAT_CATEGORIES, "lie": LIE_CATEGORIES}
 _TEXT = {"walk": "walk to the {}", "sit": "sit on the {}", "stand_up": "stand up from the {}",
@@ -216,8 +218,9 @@ def _heading(six) -> float:
     return float(np.arctan2(fwd[1], fwd[0]))
 
 
-class _Teller:
-    """The state of one story being told (models, compiled steps, the motion so far)."""
+class Teller:
+    """The state of one story being told (models, compiled steps, the motion so far): the
+    steps of :func:`tell` and the trajectory control of :mod:`jaxmotion.planning.control`."""
 
     def __init__(self, scene, files, seed, steps_spec):
         from jaxmotion.data.crop import crop_spec_from_config
@@ -260,11 +263,15 @@ class _Teller:
         self._emb = {}
 
     def text(self, action, obj) -> np.ndarray:
+        """The pooled sentence embedding of the step's text ("sit on the chair")."""
+        return self.embed(_TEXT[action].format(obj["category"]))
+
+    def embed(self, sentence: str) -> np.ndarray:
+        """The pooled sentence embedding the models read, ``[text_dim]`` (cached)."""
         from jaxmotion._jax_setup import enable_compilation_cache
         from jaxmotion.models.adm import pooled_text
         from jaxmotion.text.condition import embed_one
 
-        sentence = _TEXT[action].format(obj["category"])
         if sentence not in self._emb:
             emb = embed_one(sentence, enable_compilation_cache() / "text-embeddings")
             self._emb[sentence] = np.asarray(pooled_text(emb), np.float32)[0]
@@ -285,8 +292,7 @@ class _Teller:
                shift.astype(np.float32))
         if not others:
             return out
-        solid = [o["id"] for o in self.scene.objects
-                 if o["category"] not in ("door", "window", "picture", "curtain", "rug")]
+        solid = [o["id"] for o in self.scene.objects if o["category"] not in PASSABLE]
         return (*out, np.isin(inst, solid) & (inst != oid) & (pts[:, 2] > 0.1))
 
     def next_key(self):
@@ -446,7 +452,7 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
         except PlanningError as e:
             raise GenerateError(f"step {i} ({step.action} on object {step.object}): {e}") from e
     files = resolve_object_checkpoints(files)
-    teller = _Teller(scene, files, seed, SamplerSpec("ddim", steps, guidance=guidance))
+    teller = Teller(scene, files, seed, SamplerSpec("ddim", steps, guidance=guidance))
     for i, step in enumerate(plan, 1):
         obj = objects[step.object]
         if progress:
@@ -477,15 +483,10 @@ def describe(plan, scene) -> str:
 
 def story_generation(scene, plan, opts, progress: bool = False):
     """``jaxmotion.generate(scene, plan=...)``: the story as a
-    :class:`~jaxmotion.result.Generation` (one sample; its ``segments`` and ``paths`` set),
-    with the SMPL-X parameters of the motion itself (the object-centric models write joint
-    rotations: no fit is needed, the fit error is 0). ``opts`` gives ``seed``, ``steps``,
-    the motion stage's ``guidance`` and ``object_checkpoints``."""
+    :class:`~jaxmotion.result.Generation` (:func:`story_result`). ``opts`` gives ``seed``,
+    ``steps``, the motion stage's ``guidance`` and ``object_checkpoints``."""
     import time
 
-    from jaxmotion.constants import SCENE_FPS
-    from jaxmotion.motion.representation import motion_to_smplx
-    from jaxmotion.result import Generation
     from jaxmotion.scene.demo import load_scene_arg
 
     t0 = time.perf_counter()
@@ -493,17 +494,30 @@ def story_generation(scene, plan, opts, progress: bool = False):
     steps = read_plan(plan, room)
     story = tell(room, steps, seed=opts.seed, files=opts.object_checkpoints, steps=opts.steps,
                  guidance=opts.guidance[1], progress=progress)
-    t1 = time.perf_counter()
+    return story_result(story, room, describe(steps, room), opts,
+                        {"story": time.perf_counter() - t0}, pipeline="story",
+                        grounding="plan", target_id=steps[-1].object)
+
+
+def story_result(story: Story, room, text: str, opts, timings: dict, *, pipeline: str,
+                 grounding: str, target_id, object_id=None):
+    """A :class:`Story` as a :class:`~jaxmotion.result.Generation`: one sample, its
+    ``segments`` and ``paths`` set, with the SMPL-X parameters of the motion itself (the
+    object-centric models write joint rotations: no fit is needed, the fit error is 0)."""
+    from jaxmotion.constants import SCENE_FPS
+    from jaxmotion.motion.representation import motion_to_smplx
+    from jaxmotion.result import Generation
+
     smplx = {k: np.asarray(v, np.float32)[None]
              for k, v in motion_to_smplx(jnp.asarray(story.motion)).items()}
     smplx["betas"] = np.zeros((1, 10), np.float32)
     n = len(story.joints)
     return Generation(
-        text=describe(steps, room), scene=room, joints=story.joints[None].astype(np.float32),
-        fps=SCENE_FPS, mask=np.ones(n, bool), smplx=smplx, fit_error=np.zeros(1, np.float32),
+        text=text, scene=room, joints=story.joints[None].astype(np.float32), fps=SCENE_FPS,
+        mask=np.ones(n, bool), smplx=smplx, fit_error=np.zeros(1, np.float32),
         crop_xyz=np.zeros((0, 3), np.float32), crop_rgb=np.zeros((0, 3), np.float32),
         affordance=np.zeros((1, 0, 6), np.float32), rotation=np.eye(3, dtype=np.float32),
-        shift=np.zeros(3, np.float32), object_id=None, target_id=steps[-1].object,
-        seed=opts.seed, steps=opts.steps, timings={"story": t1 - t0},
-        guidance=(0.0, float(opts.guidance[1])), grounding="plan", pipeline="story",
+        shift=np.zeros(3, np.float32), object_id=object_id, target_id=target_id,
+        seed=opts.seed, steps=opts.steps, timings=timings,
+        guidance=(0.0, float(opts.guidance[1])), grounding=grounding, pipeline=pipeline,
         motion_candidates=1, segments=tuple(story.segments), paths=tuple(story.paths))

@@ -112,17 +112,17 @@ def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None
         ``motion_candidates``, ``checkpoints``, ``num_points``, ``fit``, ``fit_iters``,
         ``aot``; None = the default), which also override ``options``' fields.
       progress: print the stages with their times (to stderr).
-      plan, trajectory: a story (steps on object ids, or their JSON file) or a ground path to
-        follow (``[T, 2]`` at 30 fps, or a .npy / .csv) instead of one clip (:mod:`.planning`).
+      plan, trajectory: a story (steps on object ids, or their JSON file; a text of several
+        steps is one too) or a ground path to follow (``[T, 2]`` at 30 fps) (:mod:`.planning`).
     Raises:
       GenerateError: bad text, scene, object id, options or checkpoints (the message names
         the fix), before any model is loaded.
     """
-    opts = (GenerateOptions.build(**overrides) if options is None else dataclasses.replace(
-        options, **{k: v for k, v in overrides.items() if v is not None}))
-    if plan is not None or trajectory is not None:  # a story, or a path to follow
-        from jaxmotion.planning.control import planned_generation
-        return planned_generation(scene, text, opts, progress, plan=plan, trajectory=trajectory)
+    opts = GenerateOptions.merged(options, **overrides)
+    from jaxmotion.planning.control import planned_generation  # a story, or a path to follow
+    if (told := planned_generation(scene, text, opts, progress, plan=plan,
+                                   trajectory=trajectory)) is not None:
+        return told
     from jaxmotion.text.condition import check_text
     models = _check_models(opts.checkpoints, opts.object_checkpoints, opts.pipeline)
     text = check_text(text)

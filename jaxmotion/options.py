@@ -193,3 +193,12 @@ class GenerateOptions:
                                 + ", ".join(sorted(names)))
         keep_none = {"object_id", "checkpoints", "num_points", "object_checkpoints"}
         return cls(**{k: v for k, v in kwargs.items() if v is not None or k in keep_none})
+
+    @classmethod
+    def merged(cls, options: GenerateOptions | None, **overrides) -> GenerateOptions:
+        """``options`` (None: built from ``overrides`` by :meth:`build`) with the ``overrides``
+        that are not None replacing its fields, as :func:`jaxmotion.generate` takes them."""
+        if options is None:
+            return cls.build(**overrides)
+        return dataclasses.replace(options, **{k: v for k, v in overrides.items()
+                                               if v is not None})

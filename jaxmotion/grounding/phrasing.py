@@ -69,6 +69,8 @@ class Reading:
         for the sentence-encoder fallback; query: the text with object names replaced by
         "it" and politeness dropped (the fallback's query for the action).
       several: the text asks for more than one motion (only the chosen one is done).
+      steps: ``(action, first word)`` of each verb read as an action, in the text's order
+        (``words`` indices; stories split the text there, :mod:`jaxmotion.planning.steps`).
       notes: what was guessed or ignored, in words for the user.
     """
 
@@ -88,6 +90,7 @@ class Reading:
     object_phrase: str = ""
     query: str = ""
     several: bool = False
+    steps: tuple[tuple[str, int], ...] = ()
     notes: tuple[str, ...] = ()
 
 
@@ -184,7 +187,8 @@ def read_phrasing(text) -> Reading:
         if v.action is None and v.kind == "weak":
             notes.append(f"'{' '.join(raw[v.start:v.end])}' is read as an action only on a "
                          "bed or seat")
-    out = {"words": tuple(lem), "several": several}
+    out = {"words": tuple(lem), "several": several,
+           "steps": tuple((v.action, v.start) for v in acting)}
     if chosen is not None:
         out.update(action=chosen.action, action_words=" ".join(raw[chosen.start:chosen.end]),
                    action_how="object" if chosen.kind == "weak" else "words")

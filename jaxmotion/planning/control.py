@@ -193,12 +193,37 @@ def control_generation(scene, text: str, trajectory, opts, progress: bool = Fals
 
 def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=None,
                        trajectory=None):
-    """``generate`` with a ``plan`` (:func:`~jaxmotion.planning.story.story_generation`) or
-    a ``trajectory`` (:func:`control_generation`), not both."""
+    """``generate`` with a ``plan`` (:func:`~jaxmotion.planning.story.story_generation`), a
+    ``trajectory`` (:func:`control_generation`), or a ``text`` that tells a story of several
+    steps (:func:`~jaxmotion.planning.steps.plan_from_text`); None when it is none of those
+    (one instruction: ``generate`` makes one clip)."""
+    import warnings
+
+    from jaxmotion.planning.steps import is_story
+    from jaxmotion.planning.story import story_generation
+
     if plan is not None and trajectory is not None:
         raise GenerateError("give a plan (a story) or a trajectory (a path to follow), not both")
+    if trajectory is not None:
+        return control_generation(scene, text, trajectory, opts, progress)
     if plan is not None:
-        from jaxmotion.planning.story import story_generation
-
         return story_generation(scene, plan, opts, progress)
-    return control_generation(scene, text, trajectory, opts, progress)
+    if not is_story(text):
+        return None
+    from jaxmotion._jax_setup import enable_compilation_cache
+    from jaxmotion.planning.steps import plan_from_text
+    from jaxmotion.scene.demo import load_scene_arg
+    from jaxmotion.text.condition import check_text
+
+    text = check_text(text)
+    if opts.object_id is not None:
+        raise GenerateError("the text tells several steps, each naming its own object: leave "
+                            "out --object (object_id), or name the objects in the text by id")
+    room = load_scene_arg(scene, opts.num_points)
+    steps, notes = plan_from_text(room, text, enable_compilation_cache() / "text-embeddings")
+    for note in notes:
+        if progress:
+            print(f"  {note}", flush=True)
+        if "name one by id" in note:
+            warnings.warn(note, UserWarning, stacklevel=3)
+    return story_generation(room, steps, opts, progress, text=text)

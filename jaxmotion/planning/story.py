@@ -481,10 +481,11 @@ def describe(plan, scene) -> str:
     return ", ".join(_TEXT[s.action].format(f"{cats[s.object]} {s.object}") for s in plan)
 
 
-def story_generation(scene, plan, opts, progress: bool = False):
+def story_generation(scene, plan, opts, progress: bool = False, text: str | None = None):
     """``jaxmotion.generate(scene, plan=...)``: the story as a
-    :class:`~jaxmotion.result.Generation` (:func:`story_result`). ``opts`` gives ``seed``,
-    ``steps``, the motion stage's ``guidance`` and ``object_checkpoints``."""
+    :class:`~jaxmotion.result.Generation` (:func:`story_result`; its text ``text``, or the
+    steps said in words). ``opts`` gives ``seed``, ``steps``, the motion stage's ``guidance``
+    and ``object_checkpoints``."""
     import time
 
     from jaxmotion.scene.demo import load_scene_arg
@@ -494,9 +495,10 @@ def story_generation(scene, plan, opts, progress: bool = False):
     steps = read_plan(plan, room)
     story = tell(room, steps, seed=opts.seed, files=opts.object_checkpoints, steps=opts.steps,
                  guidance=opts.guidance[1], progress=progress)
-    return story_result(story, room, describe(steps, room), opts,
+    return story_result(story, room, text or describe(steps, room), opts,
                         {"story": time.perf_counter() - t0}, pipeline="story",
-                        grounding="plan", target_id=steps[-1].object)
+                        grounding="plan" if text is None else "text",
+                        target_id=steps[-1].object)
 
 
 def story_result(story: Story, room, text: str, opts, timings: dict, *, pipeline: str,

@@ -1,0 +1,121 @@
+"""A story told in words: "stand up from chair 3, walk to the table between the sofa and the
+tv and sit on the chair next to it, then lie down on the bed" read into the steps of a plan
+(:class:`~jaxmotion.planning.story.Step`), each an action on an object id of the room.
+
+:func:`split_steps` cuts the text at each verb the phrasing reader reads as an action
+(:func:`jaxmotion.grounding.phrasing.read_phrasing`); :func:`plan_from_text` grounds each
+clause on its own with the single-instruction grounding (:func:`jaxmotion.grounding.
+ground_candidates`: ids as ``jaxmotion scene info`` prints them, "chair 3", "object 12";
+classes; scene-graph relations; "the seat at the desk"), and, across clauses:
+
+- a clause naming no object, or only "it" / "there" / "here", means the previous step's
+  object ("walk to the bed and lie down on it");
+- a sit or lie on an object that does not take it means the nearest object that does ("walk
+  to table 4 and sit": the seat nearest table 4);
+- of several objects that fit a clause ("the chair next to it"), the one nearest the previous
+  step's object is meant (the first step: the first that fits, said in the notes).
+
+A text with one action is not a story: ``generate`` makes it one clip, as before.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jaxmotion.errors import GenerateError
+
+__all__ = ["is_story", "plan_from_text", "split_steps"]
+
+#: Words that refer to the previous step's object.
+_BACK = ("it", "there", "here", "that", "this", "them")
+#: Words a clause may end with that belong to the next one.
+_JOINERS = ("and", "then", "after", "that", "finally", "next", "afterwards", "later", "to")
+
+
+def split_steps(text) -> list[tuple[str, str]]:
+    """``(action, clause)`` per step of ``text``, in order (never raises; ``[]`` when no
+    action is read)."""
+    from jaxmotion.grounding.phrasing import read_phrasing, tokenize
+
+    r = read_phrasing(text)
+    raw = tokenize(text)
+    out = []
+    for k, (action, start) in enumerate(r.steps):
+        end = r.steps[k + 1][1] if k + 1 < len(r.steps) else len(raw)
+        words = [w for w in raw[start:end] if w != "|"]
+        while len(words) > 1 and words[-1] in _JOINERS:
+            words.pop()
+        out.append((action, " ".join(words)))
+    return out
+
+
+def is_story(text) -> bool:
+    """Whether ``text`` asks for more than one motion (and so is told as a story)."""
+    from jaxmotion.grounding.phrasing import read_phrasing
+
+    try:
+        return bool(read_phrasing(text).several) and len(split_steps(text)) > 1
+    except Exception:  # noqa: BLE001 - never stop a generate over this question
+        return False
+
+
+def _centre(o) -> np.ndarray:
+    return 0.5 * (np.asarray(o["bbox_min"], float) + np.asarray(o["bbox_max"], float))
+
+
+def _nearest(objs, to):
+    return min(objs, key=lambda o: float(np.linalg.norm(_centre(o)[:2] - _centre(to)[:2])))
+
+
+def plan_from_text(scene, text, similarity=None):
+    """The plan a story text asks for in ``scene``: ``(steps, notes)``, ``steps`` a list of
+    ``{"action", "object"}`` (for :func:`~jaxmotion.planning.story.read_plan`), ``notes``
+    what was chosen and why, in words. :class:`GenerateError` naming the step that cannot be
+    grounded and the fix."""
+    from jaxmotion.grounding import ground_candidates, object_table, read_instruction
+    from jaxmotion.grounding.phrasing import action_classes, canonical_category, tokenize
+
+    objects = list(object_table(scene))
+    steps, notes, prev = [], [], None
+    clauses = split_steps(text)
+    if not clauses:
+        raise GenerateError(f"no action read in {text!r}: say what to do, e.g. 'stand up from "
+                            "chair 3, walk to table 4 and sit'")
+    for i, (action, clause) in enumerate(clauses, 1):
+        ins = read_instruction(clause, similarity)
+        words = set(tokenize(clause))
+        classes = action_classes(action)
+        takes = (lambda o, c=classes: c is None or canonical_category(o["category"]) in c)
+        found = None
+        if ins.reading.target is None and not ins.named_ids and prev is not None and (
+                words & set(_BACK) or not ins.reading.generic):
+            obj = prev
+            why = f"the previous step's {prev['category']} {prev['id']}"
+        else:
+            found = ground_candidates(scene, ins)
+            if found.error:
+                raise GenerateError(f"step {i} ('{clause}'): {found.error}")
+            if not found.objects:
+                raise GenerateError(
+                    f"step {i} ('{clause}'): it names no object of this room; name one by its "
+                    "id as `jaxmotion scene info` lists them ('chair 3'), or give a plan file")
+            fits = [o for o in found.objects if takes(o)] or found.objects
+            obj = fits[0] if prev is None or len(fits) == 1 else _nearest(fits, prev)
+            why = {"named id": "named by its id"}.get(found.how, f"found by {found.how}")
+            if len(fits) > 1:
+                why += (f"; of {len(fits)} that fit, the one nearest the previous step's object"
+                        if prev is not None else
+                        f"; of {len(fits)} that fit, the first (name one by id to choose)")
+        if not takes(obj):
+            seats = [o for o in objects if takes(o)]
+            if not seats:
+                raise GenerateError(f"step {i} ('{clause}'): this room has nothing to {action} "
+                                    f"on (its objects: {sorted({o['category'] for o in objects})})")
+            near = _nearest(seats, obj)
+            why = f"the {near['category']} nearest the {obj['category']} {obj['id']}"
+            obj = near
+        steps.append({"action": action, "object": int(obj["id"])})
+        notes.append(f"step {i}: {action.replace('_', ' ')} — {obj['category']} {obj['id']} "
+                     f"({why})")
+        prev = obj
+    return steps, notes

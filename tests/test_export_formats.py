@@ -520,6 +520,29 @@ def test_viewer_page_is_self_contained_and_embeds_the_data(tmp_path):
         "l_wrist",
         "r_wrist",
     ]
+    assert data["segments"] == [] and data["paths"] == []
+
+
+def test_viewer_carries_a_storys_steps_and_paths(tmp_path):
+    xyz, rgb = _scene(19, 300)
+    joints = _motion_joints(20, 1, 6)
+    steps = [{"action": "stand_up", "object": 4, "first": 0, "last": 2},
+             {"action": "walk", "object": 9, "first": 3, "last": 5, "label": "walk · fridge 9"}]
+    path = [[0.0, 0.0], [1.0, 0.5], [2.0, 0.5]]
+    page = write_viewer_html(tmp_path / "s.html", scene_xyz=xyz, scene_rgb=rgb, joints=joints,
+                             fps=30, segments=steps, paths=[path]).read_text()
+    data = _payload(page)
+    assert data["segments"] == [{"first": 0, "last": 2, "label": "stand up · object 4"},
+                                {"first": 3, "last": 5, "label": "walk · fridge 9"}]
+    np.testing.assert_allclose(np.reshape(data["paths"][0], (3, 3)),
+                               np.c_[path, np.full(3, 0.02)])
+    assert "stepOf(frame)" in page
+    with pytest.raises(ValueError, match="outside the motion's 6 frames"):
+        write_viewer_html(tmp_path / "x.html", scene_xyz=xyz, scene_rgb=rgb, joints=joints,
+                          fps=30, segments=[{**steps[0], "last": 6}])
+    with pytest.raises(ValueError, match="a path must be"):
+        write_viewer_html(tmp_path / "x.html", scene_xyz=xyz, scene_rgb=rgb, joints=joints,
+                          fps=30, paths=[[[0.0, 0.0]]])
 
 
 def _body_page(tmp_path, k=1, t=3):

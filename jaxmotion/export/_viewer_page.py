@@ -35,7 +35,7 @@ PAGE = r"""<!DOCTYPE html>
     align-items: center; padding: 8px 12px; background: rgba(20, 22, 28, 0.85); flex-wrap: wrap; }
   #bar button { width: 34px; height: 26px; }
   #time { flex: 1; min-width: 120px; }
-  #clock { font-variant-numeric: tabular-nums; min-width: 150px; }
+  #clock { font-variant-numeric: tabular-nums; min-width: 150px; white-space: nowrap; }
   .swatch { display: inline-block; width: 10px; height: 10px; margin: 0 3px 0 8px;
     border-radius: 2px; }
 </style>
@@ -196,6 +196,11 @@ PAGE = r"""<!DOCTYPE html>
     for (let t = 0; t < T; t++) path.set(joints.subarray(((s * T + t) * J) * 3, ((s * T + t) * J + 1) * 3), t * 3);
     pathBufs.push(buffer(path));
   }
+  const planned = D.paths.map((q) => ({ buf: buffer(new Float32Array(q)), n: q.length / 3 }));
+  function stepOf(f) {
+    const i = D.segments.findIndex((g) => f >= g.first && f <= g.last);
+    return i < 0 ? "" : " · step " + (i + 1) + "/" + D.segments.length + ": " + D.segments[i].label;
+  }
   let bodyBuf = null, faceBuf = null;
   const showBody = document.getElementById("showBody");
   if (body) {
@@ -301,7 +306,7 @@ PAGE = r"""<!DOCTYPE html>
   function setFrame(f) {
     frame = ((f % T) + T) % T;
     slider.value = String(frame);
-    clock.textContent = "frame " + (frame + 1) + " / " + T + " · " + (frame / D.fps).toFixed(2) + " s";
+    clock.textContent = "frame " + (frame + 1) + " / " + T + " · " + (frame / D.fps).toFixed(2) + " s" + stepOf(frame);
     redraw();
   }
   function setPlaying(on) {
@@ -369,6 +374,8 @@ PAGE = r"""<!DOCTYPE html>
     }
 
     gl.disable(gl.DEPTH_TEST);  // the skeletons stay visible through walls and the body
+    constantColour([0.55, 0.85, 0.45]);  // planned walking paths, on the floor
+    for (const q of planned) { attrib(loc.pos, q.buf, 3); gl.drawArrays(gl.LINE_STRIP, 0, q.n); }
     gl.uniform1f(loc.size, 0.035 * pixels);
     for (let s = 0; s < K; s++) {
       const colour = D.palette[s % D.palette.length];

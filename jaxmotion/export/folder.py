@@ -101,9 +101,13 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
     if video:
         export.render_motion_video(tmp / f"motion.{video}", xyz, rgb, res.joints,
                                    res.fps, affordance=None)
+    cats = {int(o["id"]): o["category"] for o in res.scene.objects}
+    steps = [{**g, "label": g["action"].replace("_", " ") + (
+        f" · {cats.get(int(g['object']), 'object')} {g['object']}" if int(g["object"]) >= 0
+        else "")} for g in res.segments]
     export.write_viewer_html(tmp / "viewer.html", scene_xyz=xyz, scene_rgb=rgb,
                              joints=res.joints, fps=res.fps, text=res.text,
-                             affordance=heat)
+                             affordance=heat, segments=steps, paths=res.paths)
 
 
 def check_output_folder(out) -> Path:

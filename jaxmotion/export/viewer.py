@@ -114,6 +114,8 @@ def write_viewer_html(
     max_points: int = 60_000,
     body_cell: float = 0.04,
     seed: int = 0,
+    segments=(),
+    paths=(),
 ) -> Path:
     """Write one self-contained HTML page playing the motion in the scene, atomically.
 
@@ -129,6 +131,9 @@ def write_viewer_html(
         mesh, decimated (see the module docstring); optional.
       max_points: scene points kept (seeded random subset); body_cell: decimation cell, m.
       seed: for the subset.
+      segments: a story's steps, ``{"action", "object", "first", "last"}`` (optional
+        ``"label"``): the current one is named beside the clock.
+      paths: planned ground paths ``[M, 2]`` (or ``[M, 3]``), drawn on the floor.
     Returns:
       the path written.
     """
@@ -160,7 +165,23 @@ def write_viewer_html(
         "joints": _encode(j.astype(np.float32)),
         "affordance": None,
         "body": None,
+        "segments": [],
+        "paths": [],
     }
+    for seg in segments:
+        first, last = int(seg["first"]), int(seg["last"])
+        if not 0 <= first <= last < t:
+            raise ValueError(f"segment {seg} is outside the motion's {t} frames")
+        label = seg.get("label") or f"{str(seg['action']).replace('_', ' ')} · object "\
+            f"{seg['object']}"
+        data["segments"].append({"first": first, "last": last, "label": str(label)})
+    for q in paths:
+        q = np.asarray(q, np.float64)
+        if q.ndim != 2 or q.shape[1] not in (2, 3) or len(q) < 2:
+            raise ValueError(f"a path must be [M, 2] or [M, 3] with M >= 2, got {q.shape}")
+        if q.shape[1] == 2:
+            q = np.concatenate([q, np.full((len(q), 1), 0.02)], 1)
+        data["paths"].append(np.round(q, 3).ravel().tolist())
     if affordance is not None:
         a = affordance_channels(affordance, len(xyz))[keep]
         if a.shape[1] == len(AFFORDANCE_JOINTS):

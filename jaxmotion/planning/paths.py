@@ -32,7 +32,7 @@ from jaxmotion.motion.planner import BODY_TOP, CELL, PlanningError, plan_path
 __all__ = ["PointGrid", "approach_point", "free_graph", "point_grid", "scene_path"]
 
 #: Body radius a walking path keeps from obstacles (m); the ends may come closer.
-WALK_RADIUS = 0.22
+WALK_RADIUS = 0.30
 #: Clearance allowed within ``END_ZONE`` of a path's ends (an approach to a seat).
 END_RADIUS = 0.12
 END_ZONE = 0.6

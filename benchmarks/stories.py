@@ -16,7 +16,8 @@ neither. A story succeeds when
 Prints each story's checks, the rates, the top speeds and the warm time per story (the first
 story compiles; the target is ≤ 15 s warm on a 2-core CPU).
 
-    python benchmarks/stories.py --data data/unseen9001 [--rooms 30] [--seed 0] [--out DIR]
+    python benchmarks/stories.py --data data/unseen9001 [--rooms 30] [--skip 0] [--seed 0]
+        [--out DIR]
 """
 
 from __future__ import annotations
@@ -68,6 +69,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--data", required=True, help="a jaxmotion synth dataset (its scenes/)")
     p.add_argument("--rooms", type=int, default=30)
+    p.add_argument("--skip", type=int, default=0,
+                   help="leave out the first SKIP scene files (another set of rooms)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default=None, help="write stories.jsonl and the motions here")
     args = p.parse_args(argv)
@@ -79,7 +82,7 @@ def main(argv=None) -> int:
     from jaxmotion.planning.story import tell
     from jaxmotion.scene.demo import load_scene_arg
 
-    files = sorted((Path(args.data) / "scenes").glob("*.npz"))
+    files = sorted((Path(args.data) / "scenes").glob("*.npz"))[args.skip:]
     if not files:
         print(f"no scenes in {args.data}/scenes", file=sys.stderr)
         return 2

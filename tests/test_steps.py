@@ -69,7 +69,7 @@ def test_generate_tells_a_story_text(room, monkeypatch):
     """``generate`` hands a text of several steps to the story teller with the grounded plan
     (checked here without sampling), and refuses ``object_id`` with it."""
     import jaxmotion
-    import jaxmotion.planning.story as story
+    from jaxmotion.planning import story
 
     seen = {}
 

@@ -305,6 +305,7 @@ def _demo_chair(root):
     return scene, chair, fast
 
 
+@pytest.mark.slow
 def test_adm_candidates_in_eval_and_generate(tiny_runs):
     import jaxmotion
     from jaxmotion.errors import GenerateError
@@ -335,6 +336,7 @@ def test_adm_candidates_in_eval_and_generate(tiny_runs):
         jaxmotion.generate(scene, "sit down", **{**fast, "adm_steps": 0})
 
 
+@pytest.mark.slow
 def test_motion_candidates_in_eval_and_generate(tiny_runs):
     import jaxmotion
     from jaxmotion.errors import GenerateError

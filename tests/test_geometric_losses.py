@@ -102,6 +102,7 @@ def test_staircase_costs_more_than_a_smooth_path_with_the_same_position_error():
     assert float(velocity_loss(shifted, walk, mask, 30.0)) < 1e-6  # ... this one does not
 
 
+@pytest.mark.slow
 def test_amdm_fine_tunes_with_the_geometric_losses(tiny_runs, tmp_path):
     """``velocity_weight`` / ``acceleration_weight`` add their terms (logged beside the x0
     loss); ``init_from`` starts from another AMDM with its statistics, and refuses another
@@ -134,6 +135,7 @@ def test_amdm_fine_tunes_with_the_geometric_losses(tiny_runs, tmp_path):
         train(bad, get_task(bad))
 
 
+@pytest.mark.slow
 def test_completion_trains_with_the_geometric_terms(tmp_path):
     """The completion task adds the joint, foot-contact and joint-velocity terms on the
     forward kinematics of its prediction riding the true trajectory (logged beside the x0

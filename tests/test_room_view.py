@@ -223,6 +223,7 @@ def test_room_view_eval_and_probe(room_runs):
                for k in ("hit_original", "hit_true", "hit_opposite", "hit_both"))
 
 
+@pytest.mark.slow
 def test_room_view_generate(room_runs, tmp_path, monkeypatch):
     import jaxmotion
     import jaxmotion.generation as G

@@ -138,6 +138,7 @@ def test_pipeline_tells_a_target_reading_adm_the_target(target_run):
         a, plain.sample_affordance(ka, x["points"], x["colors"], text, s))
 
 
+@pytest.mark.slow
 def test_amdm_trains_on_maps_of_a_target_reading_adm(target_run, tmp_path):
     """An AMDM trained on ADM-predicted maps (predicted_fraction > 0) builds the ADM's
     condition as every other caller does (ADMNet.condition): an ADM that reads a target is

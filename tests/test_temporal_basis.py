@@ -67,6 +67,7 @@ def test_projection_removes_a_jump_and_gradients_are_right():
                 modes=["rev"], atol=1e-2, rtol=1e-2)
 
 
+@pytest.mark.slow
 def test_amdm_with_a_basis_outputs_only_slow_content():
     cfg = dataclasses.replace(AMDMConfig.tiny(), temporal_basis=4)
     model = AMDM(cfg, rngs=nnx.Rngs(0))

@@ -228,6 +228,7 @@ def test_word_level_eval(word_runs):
     assert np.isfinite(report["models"]["words"]["summary"]["goal_distance"]["mean"])
 
 
+@pytest.mark.slow
 def test_word_level_generate_caches_the_words(word_runs, tmp_path, monkeypatch):
     import jaxmotion
     import jaxmotion.text.condition as G

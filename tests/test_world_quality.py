@@ -3,6 +3,7 @@
 kinematic character): the same path `jaxmotion synth` takes."""
 
 import numpy as np
+import pytest
 
 from jaxmotion.motion import MotionError, synthesize
 from jaxmotion.scene import NoUniqueReference, sample_room, sample_task
@@ -10,6 +11,7 @@ from jaxmotion.scene import NoUniqueReference, sample_room, sample_task
 from test_motion import check  # the per-motion acceptance checks
 
 
+@pytest.mark.slow
 def test_quality_on_200_world_samples():
     rng = np.random.default_rng(7)
     done, failures, actions = 0, 0, {}

@@ -81,5 +81,7 @@ def test_generate_tells_a_story_text(room, monkeypatch):
     text = "stand up from chair 4, walk to the fridge and sit on the armchair"
     assert jaxmotion.generate(room, text) == "told"
     assert seen["text"] == text and [s["object"] for s in seen["steps"]] == [4, 9, 6]
+    with pytest.warns(UserWarning, match="one motion: samples=2 is not used"):
+        jaxmotion.generate(room, text, samples=2)
     with pytest.raises(GenerateError, match="leave out --object"):
         jaxmotion.generate(room, text, object_id=4)

@@ -4,6 +4,7 @@ they tell a staircase from a smooth path where the position loss does not."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from jaxmotion.diffusion.geometric_losses import (
     acceleration_loss,

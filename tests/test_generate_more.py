@@ -1,0 +1,206 @@
+"""`jaxmotion generate` end to end, continued: the command line, the region and pipeline choices
+(the object id, the text-only ADM, the object-centric default), compiled programs reused.
+
+Split from ``test_generate.py`` so that the two run in parallel test workers; uses the same tiny
+trained runs (conftest ``tiny_runs``)."""
+
+import json
+
+import numpy as np
+import pytest
+
+import jaxmotion
+from jaxmotion.errors import GenerateError
+from jaxmotion.pipelines.checkpoints import default_checkpoints
+
+FAST = dict(steps=2, adm_steps=2, fit_iters=5, pipeline="affordance")  # the tiny AMDM
+
+
+@pytest.fixture(scope="module")
+def ckpt(tiny_runs):
+    root, _ = tiny_runs
+    return (str(root / "adm"), str(root / "amdm"))
+
+
+def test_object_id_centres_the_crop_on_the_object(ckpt):
+    scene = jaxmotion.scene.demo.demo_scene()
+    chair = next(o for o in scene.objects if o["category"] == "chair")
+    r = jaxmotion.generate(scene, "sit down", object_id=chair["id"], checkpoints=ckpt, fit=False,
+                           **FAST)
+    assert r.object_id == chair["id"] and not r.smplx
+    centre = 0.5 * (np.asarray(chair["bbox_min"][:2]) + np.asarray(chair["bbox_max"][:2]))
+    assert np.linalg.norm(r.crop_xyz[:, :2].mean(0) - centre) < 1.5
+    with pytest.raises(GenerateError, match="BVH and GLB need it"):
+        r.save("unused")
+
+
+def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
+    from jaxmotion.cli import main
+
+    assert main(["generate", "--scene", "missing.ply", "--out", str(tmp_path / "x"),
+                 "--checkpoints", *ckpt]) == 2
+    assert "no such file" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+    out = tmp_path / "ok"
+    assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
+                 "--pipeline", "affordance",
+                 "--out", str(out), "--checkpoints", *ckpt]) == 0
+    captured = capsys.readouterr()
+    stdout = captured.out.strip().splitlines()
+    assert len(stdout) == 1  # the JSON summary alone (progress goes to stderr): `| jq` works
+    line = json.loads(stdout[0])
+    assert line["samples"] == 1 and line["frames"] == 120
+    assert line["action"] == "sit" and "action: sit (from the words 'sit')" in captured.err
+    assert (out / "motion.bvh").is_file() and not (out / "motion.gif").exists()
+    with np.load(out / "motion.npz") as f:
+        from jaxmotion.options import DEFAULT_GUIDANCE
+
+        np.testing.assert_allclose(f["guidance"], DEFAULT_GUIDANCE)
+    assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
+                 "--pipeline", "affordance",
+                 "--guidance", "2,1", "--out", str(tmp_path / "g"), "--checkpoints", *ckpt]) == 0
+    with np.load(tmp_path / "g" / "motion.npz") as f:
+        np.testing.assert_allclose(f["guidance"], [2.0, 1.0])
+    assert main(["generate", "--text", "sit on the chair", "--steps", "2", "--video", "none",
+                 "--pipeline", "affordance",
+                 "--consistency", "0", "--adm-candidates", "2", "--adm-steps", "3",
+                 "--out", str(tmp_path / "c"), "--checkpoints", *ckpt]) == 0
+    line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    with np.load(tmp_path / "c" / "motion.npz") as f:
+        assert float(f["consistency"]) == 0.0
+        # the demo's one chair is the known target: the maps drawn are recorded
+        assert int(f["adm_candidates"]) == line["adm_candidates"] == 2
+        assert int(f["adm_steps"]) == line["adm_steps"] == 3 and line["steps"] == 2
+    for bad in ("1.5", "x"):
+        with pytest.raises(SystemExit):
+            main(["generate", "--consistency", bad, "--out", str(tmp_path / "bad")])
+        assert "--consistency" in capsys.readouterr().err
+    for bad in ("0", "1,2,3", "x"):
+        with pytest.raises(SystemExit):
+            main(["generate", "--guidance", bad, "--out", str(tmp_path / "bad")])
+        assert "--guidance" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+
+
+@pytest.mark.skipif(not all(p.is_file() for p in default_checkpoints()),
+                    reason="the default checkpoints are not installed")
+def test_shipped_default():
+    r = jaxmotion.generate("demo", samples=1, steps=10, fit=False)
+    assert r.joints.shape[1:] == (120, 22, 3) and np.isfinite(r.joints).all()
+    assert r.joints[..., 2].min() > -0.1  # nobody sinks into the floor
+
+
+def test_text_naming_no_object_tiles_the_room(ckpt):
+    r = jaxmotion.generate("demo", "dance around for a while", checkpoints=ckpt, fit=False,
+                           **FAST)
+    assert r.target_id is None and r.joints.shape == (1, 120, 22, 3)
+
+
+def test_exported_programs_are_reused_only_for_the_same_code_and_shapes(tmp_path, monkeypatch):
+    import jaxmotion.compiled as C
+
+    calls = []
+
+    def build():
+        calls.append(1)
+        return lambda x: x * 2.0
+
+    x = np.arange(3, dtype=np.float32)
+    np.testing.assert_array_equal(C.cached_call(tmp_path, "f", "v1", build, (x,)), 2 * x)
+    np.testing.assert_array_equal(C.cached_call(tmp_path, "f", "v1", build, (x,)), 2 * x)
+    assert len(calls) == 1 and len(list(tmp_path.glob("f-*.jaxexport"))) == 1
+    C.cached_call(tmp_path, "f", "v1", build, (np.arange(4, dtype=np.float32),))  # new shape
+    monkeypatch.setattr(C, "code_digest", lambda: "edited sources")
+    C.cached_call(tmp_path, "f", "v1", build, (x,))  # the code changed: traced again
+    assert len(calls) == 3 and len(list(tmp_path.glob("f-*.jaxexport"))) == 3
+
+
+def test_known_target_keeps_the_map_off_its_class_mates(tiny_runs, ckpt):
+    """With object_id (or grounding=auto) the other objects of the target's class are left
+    out of the ADM's map; with grounding=adm and no object_id nothing is left out."""
+    from jaxmotion.grounding import object_table, same_class_others
+    from jaxmotion.scene import load_scene
+
+    _, out = tiny_runs
+    def centre(o):
+        return 0.5 * (np.asarray(o["bbox_min"][:2]) + np.asarray(o["bbox_max"][:2]))
+
+    best = None  # the closest pair of same-class objects in the tiny rooms: both in one crop
+    for f in sorted((out["data"] / "scenes").glob("*.npz")):
+        room = load_scene(f)
+        objs = object_table(room)
+        for a in objs:
+            for b in objs:
+                d = np.linalg.norm(centre(a) - centre(b))
+                if a["id"] != b["id"] and a["category"] == b["category"] and (
+                        best is None or d < best[0]):
+                    best = (d, room, objs, a)
+    assert best is not None, "the tiny dataset has no room with two objects of one class"
+    _, room, objs, dup = best
+    others = same_class_others(objs, dup["id"])
+    r = jaxmotion.generate(room, f"walk to the {dup['category']}", object_id=dup["id"],
+                           checkpoints=ckpt, fit=False, **FAST)
+    assert r.excluded == tuple(others) and r.target_id == dup["id"]
+    # the crop's points on those objects, found in the room by exact coordinates
+    inst = {tuple(p): i for p, i in zip(room.xyz.round(5).tolist(), room.instance)}
+    crop_inst = np.array([inst[tuple(p)] for p in r.crop_xyz.round(5).tolist()])
+    on = np.isin(crop_inst, others)
+    assert on.any(), "no class mate in the crop: pick another room"
+    assert np.abs(r.affordance[:, on]).max() <= 1e-6 and r.affordance[:, ~on].max() > 1e-3
+    plain = jaxmotion.generate(room, f"walk to the {dup['category']}", grounding="adm",
+                               checkpoints=ckpt, fit=False, **FAST)
+    assert plain.excluded == ()
+    line = json.loads(jaxmotion.export.summary(r))
+    assert line["excluded"] == list(others)
+    # the target is known: the default number of maps (recorded in the result and its line)
+    assert r.adm_candidates == line["adm_candidates"] == jaxmotion.options.DEFAULT_ADM_CANDIDATES
+
+
+def test_text_only_adm_when_no_target_is_known(ckpt, tmp_path, monkeypatch):
+    """A folder's adm_text.safetensors draws the maps whenever no target is known (tiles,
+    region choice); adm.safetensors those of a known target."""
+    import shutil
+    from pathlib import Path
+
+    import jaxmotion.pipelines.checkpoints as G
+
+    folder = tmp_path / "ckpt"
+    folder.mkdir()
+    shutil.copy(Path(ckpt[0]) / "model.safetensors", folder / "adm.safetensors")
+    shutil.copy(Path(ckpt[1]) / "model.safetensors", folder / "amdm.safetensors")
+    assert G.text_adm_for(folder / "adm.safetensors") == folder / "adm.safetensors"  # none there
+    shutil.copy(Path(ckpt[0]) / "model.safetensors", folder / G.TEXT_ADM)
+    assert G.text_adm_for(folder / "adm.safetensors") == folder / G.TEXT_ADM
+    assert G.text_adm_for(Path(ckpt[0]) / "model.safetensors").name == "model.safetensors"
+    used = []
+    real = G.load_pipeline
+
+    def spy(adm, amdm):
+        used.append(Path(adm).name)
+        return real(adm, amdm)
+
+    monkeypatch.setattr(G, "load_pipeline", spy)
+    r = jaxmotion.generate("demo", "dance around for a while", checkpoints=folder, fit=False,
+                           aot=False, **FAST)
+    assert r.target_id is None and used and set(used) == {G.TEXT_ADM}
+    used.clear()
+    r = jaxmotion.generate("demo", "sit on the chair next to the table", checkpoints=folder,
+                           fit=False, aot=False, **FAST)
+    assert r.target_id is not None and used == ["adm.safetensors"]
+
+
+def test_the_default_pipeline_is_object_centric_when_the_target_is_known(ckpt, tmp_path):
+    """``pipeline="auto"`` (the default): the object-centric models sample when the text's
+    target is found, the affordance pipeline when no target is (here a text with no object)."""
+    from jaxmotion.options import GenerateOptions
+
+    assert GenerateOptions().pipeline == "auto"
+    kw = dict(checkpoints=ckpt, steps=2, adm_steps=2, fit=False, aot=False)
+    r = jaxmotion.generate("demo", "sit on the chair next to the table", **kw)
+    assert r.pipeline == "object-centric" and r.target_id is not None
+    assert json.loads(jaxmotion.export.summary(r))["pipeline"] == "object-centric"
+    assert np.isfinite(r.joints).all() and r.joints.shape == (1, 120, 22, 3)
+    r = jaxmotion.generate("demo", "dance around for a while", **kw)
+    assert r.pipeline == "affordance" and r.target_id is None
+    with pytest.raises(GenerateError, match="needs a target object"):
+        jaxmotion.generate("demo", "dance around for a while", pipeline="object-centric", **kw)

@@ -61,6 +61,10 @@ def test_steps_are_grounded_to_ids(room):
 def test_steps_that_cannot_be_grounded_are_refused(room):
     with pytest.raises(GenerateError, match="step 2 .*no beds or sofas to lie on"):
         plan_from_text(room, "stand up from chair 4 and lie down on the bed")
+    with pytest.raises(GenerateError, match=r"step 2 .*cannot sit on table 3"):
+        plan_from_text(room, "stand up from chair 4 and sit on object 3")
+    with pytest.raises(GenerateError, match=r"step 2 \('walk to the bed'\): .*bed"):
+        plan_from_text(room, "stand up from chair 4, walk to the bed and sit on the stool")
     with pytest.raises(GenerateError, match="no action read"):
         plan_from_text(room, "hello there")
 

@@ -11,7 +11,8 @@ classes; scene-graph relations; "the seat at the desk"), and, across clauses:
 - a clause naming no object, or only "it" / "there" / "here", means the previous step's
   object ("walk to the bed and lie down on it");
 - a sit or lie on an object that does not take it means the nearest object that does ("walk
-  to table 4 and sit": the seat nearest table 4);
+  to table 4 and sit": the seat nearest table 4), unless the clause names that object by its
+  id ("sit on object 4", a lamp: refused);
 - of several objects that fit a clause ("the chair next to it"), the one nearest the previous
   step's object is meant (the first step: the first that fits, said in the notes).
 
@@ -96,9 +97,13 @@ def plan_from_text(scene, text, similarity=None):
             if found.error:
                 raise GenerateError(f"step {i} ('{clause}'): {found.error}")
             if not found.objects:
+                have = ", ".join(sorted({o["category"] for o in objects})) or "none"
+                r = ins.reading
+                why = (f"this room has no {r.target_words or r.target} (its objects: {have})"
+                       if r.target else f"it names no object of this room (its objects: {have})")
                 raise GenerateError(
-                    f"step {i} ('{clause}'): it names no object of this room; name one by its "
-                    "id as `jaxmotion scene info` lists them ('chair 3'), or give a plan file")
+                    f"step {i} ('{clause}'): {why}; name one of its objects by its id as "
+                    "`jaxmotion scene info` lists them ('chair 3'), or give a plan file")
             fits = [o for o in found.objects if takes(o)] or found.objects
             obj = fits[0] if prev is None or len(fits) == 1 else _nearest(fits, prev)
             why = {"named id": "named by its id"}.get(found.how, f"found by {found.how}")
@@ -106,6 +111,10 @@ def plan_from_text(scene, text, similarity=None):
                 why += (f"; of {len(fits)} that fit, the one nearest the previous step's object"
                         if prev is not None else
                         f"; of {len(fits)} that fit, the first (name one by id to choose)")
+        if not takes(obj) and found is not None and found.how == "named id":
+            raise GenerateError(f"step {i} ('{clause}'): cannot {action.replace('_', ' ')} on "
+                                f"{obj['category']} {obj['id']}; name an object that takes it "
+                                f"({', '.join(classes)})")
         if not takes(obj):
             seats = [o for o in objects if takes(o)]
             if not seats:

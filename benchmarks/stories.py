@@ -7,7 +7,9 @@ it the one to sit on, and the walk goes to the object nearest the middle of the 
 neither. A story succeeds when
 
 - it **starts seated** on the first seat (the geometric judge's stand-up check at frame 0),
-- it **ends seated** on the last seat (the judge's sit check at the last frame),
+- it **ends seated** on the last seat (the judge's sit check at the last frame; with
+  ``--last lie`` the last step lies on the bed or sofa farthest from the first seat, and the
+  judge's lie check counts),
 - it has **no teleport** (:func:`jaxmotion.eval.plausibility.teleports`), and
 - it **keeps out of other furniture**: joints inside the box of an object other than the two
   seats and the walk's target (shrunk by 5 cm, floors and walls aside) in at most 1 % of
@@ -17,7 +19,7 @@ Prints each story's checks, the rates, the top speeds and the warm time per stor
 story compiles; the target is ≤ 15 s warm on a 2-core CPU).
 
     python benchmarks/stories.py --data data/unseen9001 [--rooms 30] [--skip 0] [--seed 0]
-        [--out DIR]
+        [--last sit|lie] [--out DIR]
 """
 
 from __future__ import annotations
@@ -31,18 +33,29 @@ from pathlib import Path
 import numpy as np
 
 SEATS = ("chair", "armchair", "sofa", "stool")
+BEDS = ("bed", "sofa")
 SKIP = ("door", "window", "floor", "wall", "rug", "curtain")
 
 
-def choose_plan(scene):
-    """``[stand_up A, walk C, sit B]`` for a room, or None when it has fewer than two seats."""
+def choose_plan(scene, last: str = "sit"):
+    """``[stand_up A, walk C, sit B]`` for a room, or None when it has fewer than two seats;
+    with ``last="lie"``, ``[stand_up A, walk C, lie B]`` with B a bed (or a sofa), None when
+    the room has no seat and bed apart."""
     objs = [o for o in scene.objects if o["category"] in SEATS]
-    if len(objs) < 2:
-        return None
+    beds = [o for o in scene.objects if o["category"] in BEDS]
     centre = {o["id"]: 0.5 * (np.asarray(o["bbox_min"][:2]) + np.asarray(o["bbox_max"][:2]))
               for o in scene.objects}
-    a = objs[0]
-    b = max(objs[1:], key=lambda o: np.linalg.norm(centre[o["id"]] - centre[a["id"]]))
+    if last == "lie":
+        a = objs[0] if objs else None
+        beds = [o for o in beds if a is not None and o["id"] != a["id"]]
+        if not beds:
+            return None
+        b = max(beds, key=lambda o: np.linalg.norm(centre[o["id"]] - centre[a["id"]]))
+    else:
+        if len(objs) < 2:
+            return None
+        a = objs[0]
+        b = max(objs[1:], key=lambda o: np.linalg.norm(centre[o["id"]] - centre[a["id"]]))
     mid = 0.5 * (centre[a["id"]] + centre[b["id"]])
     others = [o for o in scene.objects if o["id"] not in (a["id"], b["id"])
               and o["category"] not in SKIP]
@@ -50,7 +63,7 @@ def choose_plan(scene):
         return None
     c = min(others, key=lambda o: np.linalg.norm(centre[o["id"]] - mid))
     return [{"action": "stand_up", "object": a["id"]}, {"action": "walk", "object": c["id"]},
-            {"action": "sit", "object": b["id"]}], (a, b, c)
+            {"action": last, "object": b["id"]}], (a, b, c)
 
 
 def furniture_frames(joints, scene, allowed, margin=0.05) -> float:
@@ -69,6 +82,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--data", required=True, help="a jaxmotion synth dataset (its scenes/)")
     p.add_argument("--rooms", type=int, default=30)
+    p.add_argument("--last", choices=("sit", "lie"), default="sit",
+                   help="the last step: sit on a seat (default) or lie on a bed or sofa")
     p.add_argument("--skip", type=int, default=0,
                    help="leave out the first SKIP scene files (another set of rooms)")
     p.add_argument("--seed", type=int, default=0)
@@ -94,7 +109,7 @@ def main(argv=None) -> int:
         if len(rows) >= args.rooms:
             break
         scene = load_scene_arg(str(f))
-        chosen = choose_plan(scene)
+        chosen = choose_plan(scene, args.last)
         if chosen is None:
             continue
         plan, (a, b, c) = chosen
@@ -117,7 +132,7 @@ def main(argv=None) -> int:
 
         pl = plausibility(jnp.asarray(j), None)
         row = {"scene": f.name, "plan": plan, "frames": len(j),
-               "start_seated": seated("stand_up", a, j), "end_seated": seated("sit", b, j),
+               "start_seated": seated("stand_up", a, j), "end_seated": seated(args.last, b, j),
                "teleport": bool(pl["teleport"]),
                "pelvis_speed_max": float(pl["pelvis_speed_max"]),
                "joint_speed_max": float(pl["joint_speed_max"]),

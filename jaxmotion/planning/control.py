@@ -204,7 +204,9 @@ def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=N
 
     if plan is not None and trajectory is not None:
         raise GenerateError("give a plan (a story) or a trajectory (a path to follow), not both")
-    if (plan is not None or trajectory is not None) and opts.samples > 1:
+    if plan is None and trajectory is None and not is_story(text):
+        return None
+    if opts.samples > 1:
         warnings.warn(f"a story or a followed path is one motion: samples={opts.samples} is "
                       "not used (run again with other seeds for others)", UserWarning,
                       stacklevel=3)
@@ -212,12 +214,6 @@ def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=N
         return control_generation(scene, text, trajectory, opts, progress)
     if plan is not None:
         return story_generation(scene, plan, opts, progress)
-    if not is_story(text):
-        return None
-    if opts.samples > 1:
-        warnings.warn(f"the text tells a story, which is one motion: samples={opts.samples} is "
-                      "not used (run again with other seeds for others)", UserWarning,
-                      stacklevel=3)
     from jaxmotion._jax_setup import enable_compilation_cache
     from jaxmotion.planning.steps import plan_from_text
     from jaxmotion.scene.demo import load_scene_arg

@@ -55,7 +55,8 @@ def is_story(text) -> bool:
     from jaxmotion.grounding.phrasing import read_phrasing
 
     try:
-        return bool(read_phrasing(text).several) and len(split_steps(text)) > 1
+        r = read_phrasing(text)  # split_steps makes one step of each of r.steps
+        return bool(r.several) and len(r.steps) > 1
     except Exception:  # noqa: BLE001 - never stop a generate over this question
         return False
 

@@ -415,6 +415,7 @@ class Teller:
                 return seg
             s = stop - PREFIX - BLEND
 
+
 def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
          guidance: float = 1.0, progress: bool = False) -> Story:
     """The story of ``plan`` (see :func:`read_plan`) in ``scene`` (a

@@ -17,8 +17,15 @@ def room():  # door 0, windows 1-2, table 3, chair 4, cabinet 5, armchair 6, sto
 
 
 def plan(room, text):
-    steps, notes = plan_from_text(room, text)
+    steps, notes, _ = plan_from_text(room, text)
     return [(s["action"], s["object"]) for s in steps], notes
+
+
+def gap(a, b):
+    """Brute-force horizontal gap between two objects' boxes (0 when they touch)."""
+    d = [max(0.0, a["bbox_min"][k] - b["bbox_max"][k], b["bbox_min"][k] - a["bbox_max"][k])
+         for k in (0, 1)]
+    return (d[0] ** 2 + d[1] ** 2) ** 0.5
 
 
 def test_split_steps_cuts_at_each_action():
@@ -50,12 +57,17 @@ def test_steps_are_grounded_to_ids(room):
                               "stool next to it")
     fridge = next(o for o in room.objects if o["id"] == 9)
     stools = [o for o in room.objects if o["category"] == "stool"]
-    near = min(stools, key=lambda o: sum((a + b - c - d) ** 2 for a, b, c, d in zip(
-        o["bbox_min"][:2], o["bbox_max"][:2], fridge["bbox_min"][:2], fridge["bbox_max"][:2])))
+    near = min(stools, key=lambda o: gap(o, fridge))
     assert steps == [("stand_up", 6), ("walk", 9), ("sit", near["id"])]
     assert "of 2 that fit" in notes[2]
     assert plan(room, "sit on chair 4 and then stand up from it")[0] == [("sit", 4),
                                                                            ("stand_up", 4)]
+    # the choices the text leaves open are returned as warnings, apart from the notes
+    assert plan_from_text(room, "stand up from chair 4, walk to the fridge and sit on the "
+                                "armchair")[2] == []
+    steps, _, warns = plan_from_text(room, "sit on the stool, then walk to the fridge")
+    assert len(warns) == 1 and "2 objects fit" in warns[0] and "name one by id" in warns[0]
+    assert str(steps[0]["object"]) in warns[0]
 
 
 def test_steps_that_cannot_be_grounded_are_refused(room):

@@ -25,7 +25,7 @@ from jaxmotion.grounding.words import MAX_WORDS, canonical_category, indexes, le
 from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
 __all__ = ["ACTION_OBJECT_CLASSES", "MAX_WORDS", "Reading", "action_classes",
-           "canonical_category", "read_phrasing", "tokenize"]
+           "canonical_category", "preferred_seats", "read_phrasing", "tokenize"]
 
 _PRIORITY = {"stand_up": 3, "lie": 2, "sit": 1, "walk": 0}
 #: the classes each action can take (None: any object)
@@ -44,6 +44,19 @@ def action_classes(action: str | None) -> tuple[str, ...] | None:
     """The object classes ``action`` takes (sitting and getting up: seats, the bed last;
     lying: beds and sofas); None for walking or no action (any object)."""
     return ACTION_OBJECT_CLASSES.get(action) if action else None
+
+
+def preferred_seats(action: str | None, objects) -> list:
+    """Of ``objects`` (object-table rows) that ``action`` can take, the ones a plain
+    "sit" / "stand up" means: the seats that are not beds, when there are any (a bed takes
+    a sit, but a room's chairs and sofas come first); for other actions all that take it."""
+    classes = action_classes(action)
+    fits = [o for o in objects if classes is None or canonical_category(o["category"]) in classes]
+    if action in ("sit", "stand_up"):
+        beds = [o for o in fits if canonical_category(o["category"]) == "bed"]
+        if len(beds) < len(fits):
+            fits = [o for o in fits if canonical_category(o["category"]) != "bed"]
+    return fits
 
 
 @dataclass(frozen=True)

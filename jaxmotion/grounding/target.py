@@ -27,6 +27,7 @@ from jaxmotion.grounding.phrasing import (
     Reading,
     action_classes,
     canonical_category,
+    preferred_seats,
     read_phrasing,
     tokenize,
 )
@@ -385,10 +386,8 @@ def _seat_at(anchors, how, action, r, by_class, objects, notes, warns, grounding
 
     classes = action_classes(action) or ()
     ids = {o["id"] for o in anchors}
-    seats = [o for c in classes for o in by_class.get(c, ()) if o["id"] not in ids]
-    if action in ("sit", "stand_up") and any(canonical_category(o["category"]) != "bed"
-                                             for o in seats):
-        seats = [o for o in seats if canonical_category(o["category"]) != "bed"]
+    seats = preferred_seats(action, [o for c in classes for o in by_class.get(c, ())
+                                     if o["id"] not in ids])
     words = f"{r.preposition or 'at'} the {r.target_words}"
     if not seats:
         warns.append(f"'{words}' asks for one of the room's {_plural(action)} near it, and "

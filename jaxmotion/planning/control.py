@@ -224,10 +224,11 @@ def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=N
         raise GenerateError("the text tells several steps, each naming its own object: leave "
                             "out --object (object_id), or name the objects in the text by id")
     room = load_scene_arg(scene, opts.num_points)
-    steps, notes = plan_from_text(room, text, enable_compilation_cache() / "text-embeddings")
-    for note in notes:
-        if progress:
+    steps, notes, warns = plan_from_text(room, text,
+                                         enable_compilation_cache() / "text-embeddings")
+    if progress:
+        for note in notes:
             print(f"  {note}", flush=True)
-        if "name one by id" in note:
-            warnings.warn(note, UserWarning, stacklevel=3)
+    for warn in warns:
+        warnings.warn(warn, UserWarning, stacklevel=3)
     return story_generation(room, steps, opts, progress, text=text)

@@ -21,8 +21,6 @@ A text with one action is not a story: ``generate`` makes it one clip, as before
 
 from __future__ import annotations
 
-import numpy as np
-
 from jaxmotion.errors import GenerateError
 
 __all__ = ["is_story", "plan_from_text", "split_steps"]
@@ -61,24 +59,31 @@ def is_story(text) -> bool:
         return False
 
 
-def _centre(o) -> np.ndarray:
-    return 0.5 * (np.asarray(o["bbox_min"], float) + np.asarray(o["bbox_max"], float))
-
-
-def _nearest(objs, to):
-    return min(objs, key=lambda o: float(np.linalg.norm(_centre(o)[:2] - _centre(to)[:2])))
-
-
 def plan_from_text(scene, text, similarity=None):
-    """The plan a story text asks for in ``scene``: ``(steps, notes)``, ``steps`` a list of
-    ``{"action", "object"}`` (for :func:`~jaxmotion.planning.story.read_plan`), ``notes``
-    what was chosen and why, in words. :class:`GenerateError` naming the step that cannot be
-    grounded and the fix."""
+    """The plan a story text asks for in ``scene``: ``(steps, notes, warnings)``, ``steps`` a
+    list of ``{"action", "object"}`` (for :func:`~jaxmotion.planning.story.read_plan`),
+    ``notes`` what was chosen and why, in words, ``warnings`` the choices the text left open
+    (worth saying to the user). :class:`GenerateError` naming the step that cannot be
+    grounded and the fix.
+
+    "Nearest" is the scene graph's box-to-box distance (:meth:`~jaxmotion.scene.graph.
+    SceneGraph.distance`), as "the seat at the desk" in the single-instruction grounding."""
     from jaxmotion.grounding import ground_candidates, object_table, read_instruction
-    from jaxmotion.grounding.phrasing import action_classes, canonical_category, tokenize
+    from jaxmotion.grounding.phrasing import (
+        action_classes,
+        canonical_category,
+        preferred_seats,
+        tokenize,
+    )
+    from jaxmotion.scene.graph import SceneGraph
 
     objects = list(object_table(scene))
-    steps, notes, prev = [], [], None
+    graph = SceneGraph(objects)
+
+    def nearest(objs, to):
+        return min(objs, key=lambda o: graph.distance(o["id"], to["id"]))
+
+    steps, notes, warns, prev = [], [], [], None
     clauses = split_steps(text)
     if not clauses:
         raise GenerateError(f"no action read in {text!r}: say what to do, e.g. 'stand up from "
@@ -106,26 +111,28 @@ def plan_from_text(scene, text, similarity=None):
                     f"step {i} ('{clause}'): {why}; name one of its objects by its id as "
                     "`jaxmotion scene info` lists them ('chair 3'), or give a plan file")
             fits = [o for o in found.objects if takes(o)] or found.objects
-            obj = fits[0] if prev is None or len(fits) == 1 else _nearest(fits, prev)
+            obj = fits[0] if prev is None or len(fits) == 1 else nearest(fits, prev)
             why = {"named id": "named by its id"}.get(found.how, f"found by {found.how}")
-            if len(fits) > 1:
-                why += (f"; of {len(fits)} that fit, the one nearest the previous step's object"
-                        if prev is not None else
-                        f"; of {len(fits)} that fit, the first (name one by id to choose)")
+            if len(fits) > 1 and prev is not None:
+                why += f"; of {len(fits)} that fit, the one nearest the previous step's object"
+            elif len(fits) > 1:
+                why += f"; of {len(fits)} that fit, the first (name one by id to choose)"
+                warns.append(f"step {i} ('{clause}'): {len(fits)} objects fit; "
+                             f"{obj['category']} {obj['id']} was taken (name one by id to choose)")
         if not takes(obj) and found is not None and found.how == "named id":
             raise GenerateError(f"step {i} ('{clause}'): cannot {action.replace('_', ' ')} on "
                                 f"{obj['category']} {obj['id']}; name an object that takes it "
                                 f"({', '.join(classes)})")
         if not takes(obj):
-            seats = [o for o in objects if takes(o)]
+            seats = preferred_seats(action, objects)
             if not seats:
                 raise GenerateError(f"step {i} ('{clause}'): this room has nothing to {action} "
                                     f"on (its objects: {sorted({o['category'] for o in objects})})")
-            near = _nearest(seats, obj)
+            near = nearest(seats, obj)
             why = f"the {near['category']} nearest the {obj['category']} {obj['id']}"
             obj = near
         steps.append({"action": action, "object": int(obj["id"])})
         notes.append(f"step {i}: {action.replace('_', ' ')} — {obj['category']} {obj['id']} "
                      f"({why})")
         prev = obj
-    return steps, notes
+    return steps, notes, warns

@@ -10,7 +10,7 @@ import pytest
 from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
 from jaxmotion.errors import GenerateError
 from jaxmotion.geometry.rotations import rotation_6d_to_matrix
-from jaxmotion.planning.story import Step, read_plan
+from jaxmotion.planning.story import Step, read_plan, stood_up
 from jaxmotion.planning.trajectory import trajectory_features
 from jaxmotion.scene.demo import demo_scene
 
@@ -162,3 +162,19 @@ def test_choose_prefers_plausible_then_clear_of_furniture_then_nearest():
     got = int(choose(jnp.asarray(np.stack([jump, walk])), points, target, np.zeros(2, bool),
                      False))
     assert got == 1  # no furniture: the plausible one
+
+
+def test_a_stand_up_is_cut_once_the_body_is_up():
+    """The stand-up keeps its frames until 15 after the pelvis has risen 90 % of the way, to
+    the standing height or to the top of its own rise when it stands lower (soft knees: the
+    model's walk-off after it would otherwise stay in the story); all of them when it never
+    gets up."""
+    t = np.arange(120)
+    rise = np.clip((t - 30) / 30, 0, 1)  # seated 0.6 until frame 30, up at frame 60
+    full = 0.6 + (0.944 - 0.6) * rise
+    soft = 0.6 + (0.90 - 0.6) * rise
+    first = lambda z, top: int(np.flatnonzero(z >= 0.6 + 0.9 * (top - 0.6))[0])
+    assert stood_up(full, 0.6, 0.944) == first(full, 0.944) + 15 == 72
+    assert stood_up(soft, 0.6, 0.944) == first(soft, 0.90) + 15 == 72
+    assert stood_up(0.6 + 0.1 * rise, 0.6, 0.944) == 120  # never up: all of it
+    assert stood_up(np.full(10, 0.95), 0.6, 0.944) == 10  # up from the start, short clip

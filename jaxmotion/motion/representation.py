@@ -30,14 +30,18 @@ from jaxmotion.geometry.skeleton import forward_kinematics, rest_joints
 __all__ = [
     "MOTION_DIM",
     "TRAJECTORY_DIM",
+    "VELOCITY_DIM",
     "motion_features",
     "motion_to_joints",
     "motion_to_smplx",
     "trajectory_frames",
+    "trajectory_velocity",
 ]
 
 TRAJECTORY_DIM = 9
 MOTION_DIM = TRAJECTORY_DIM + 21 * 6
+#: Entries per frame of :func:`trajectory_velocity`.
+VELOCITY_DIM = 4
 
 
 def motion_features(pelvis, global_rot, body_pose):
@@ -92,3 +96,40 @@ def motion_to_joints(features, betas=None):
     local = jnp.concatenate([g[..., None, :, :], body], axis=-3)
     rest = rest_joints(betas)[..., None, :, :]  # [..., 1, 22, 3]: the same body every frame
     return forward_kinematics(local, pelvis - rest[..., 0, :], rest)
+
+
+def trajectory_velocity(features, mask=None, fps: float = 30.0):
+    """How the root moves, in the body's own heading frame: ``[..., T, 4]`` = the pelvis's
+    forward and leftward speed along the ground (m/s, forward being the body's z axis
+    projected on the floor), its vertical speed (m/s) and the turning rate of the heading
+    (rad/s divided by π), by central differences over the valid frames (one-sided at the
+    ends of ``mask``; 0 on padded frames and for a motion of one frame).
+
+    A walk's step rhythm (speed rising and falling twice a cycle, the pelvis's bob and sway)
+    reads plainly here, where the absolute trajectory features only move by a small fraction
+    of their spread between two frames.
+
+    Args:
+      features: ``[..., T, >=9]`` trajectory (or motion) features, metres (not normalised).
+      mask: ``[..., T]`` bool, True = valid frame (default all).
+    """
+    pelvis, rot = trajectory_frames(features)
+    t = pelvis.shape[-2]
+    mask = (jnp.ones(pelvis.shape[:-1], bool) if mask is None
+            else jnp.broadcast_to(jnp.asarray(mask, bool), pelvis.shape[:-1]))
+    fwd = rot[..., :, 2]
+    yaw = jnp.arctan2(fwd[..., 1], fwd[..., 0])
+    x = jnp.concatenate([pelvis, yaw[..., None]], -1)  # [..., T, 4]
+    pad = jnp.zeros(mask.shape[:-1] + (1,), bool)
+    m_next = jnp.concatenate([mask[..., 1:], pad], -1) & mask
+    m_prev = jnp.concatenate([pad, mask[..., :-1]], -1) & mask
+    nxt = jnp.concatenate([x[..., 1:, :], x[..., -1:, :]], -2) if t > 1 else x
+    prv = jnp.concatenate([x[..., :1, :], x[..., :-1, :]], -2) if t > 1 else x
+    d = jnp.where(m_next[..., None], nxt, x) - jnp.where(m_prev[..., None], prv, x)
+    d = d.at[..., 3].set((d[..., 3] + jnp.pi) % (2 * jnp.pi) - jnp.pi)  # wrap the turn
+    steps = (m_next.astype(jnp.float32) + m_prev.astype(jnp.float32))[..., None]
+    v = d / jnp.maximum(steps, 1.0) * fps
+    c, s = jnp.cos(yaw), jnp.sin(yaw)
+    out = jnp.stack([c * v[..., 0] + s * v[..., 1], -s * v[..., 0] + c * v[..., 1],
+                     v[..., 2], v[..., 3] / jnp.pi], -1)
+    return jnp.where(mask[..., None], out, 0.0)

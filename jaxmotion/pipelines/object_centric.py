@@ -30,11 +30,17 @@ import jax
 import jax.numpy as jnp
 from flax import nnx
 
+from jaxmotion.constants import SCENE_FPS
 from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
 from jaxmotion.models.object_centric import ACTION_CLASSES, UNKNOWN_ACTION
-from jaxmotion.motion.representation import TRAJECTORY_DIM, motion_to_joints, trajectory_frames
+from jaxmotion.motion.representation import (
+    TRAJECTORY_DIM,
+    motion_to_joints,
+    trajectory_frames,
+    trajectory_velocity,
+)
 
 __all__ = [
     "ENVIRONMENT_HALF_SIZE",
@@ -219,6 +225,8 @@ class ObjectCentricPipeline:
         c_mean, c_std = self.comp_stats
         cond = {**base, "trajectory": ((traj - c_mean[:TRAJECTORY_DIM])
                                        / c_std[:TRAJECTORY_DIM])[None]}
+        if self.completion.cfg.traj_velocity:
+            cond["traj_velocity"] = trajectory_velocity(traj, base["mask"][0], SCENE_FPS)[None]
         if self.completion.cfg.traj_sensor:
             sp = self.sensor_points or points.shape[0]
             cond["traj_sensor"] = trajectory_sensors(points[:sp], normals[:sp], traj,

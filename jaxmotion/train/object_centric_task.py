@@ -87,18 +87,25 @@ class ObjectCentricTask(DataTask):
             raise ValueError(f"init_from={cfg.init_from}: {path} is a {saved.get('task')!r} "
                              f"checkpoint, not a {cfg.task} one")
         mine = config_to_dict(cfg.model)
-        theirs = {"action_token": False, **saved["model"]}
-        grow = mine["action_token"] and not theirs["action_token"]
+        theirs = {"action_token": False, "traj_velocity": False, **saved["model"]}
+        # switched on over theirs: the new inputs start with zero weights (the same function)
+        grow = {k for k in ("action_token", "traj_velocity") if mine[k] and not theirs[k]}
         diff = [f"{k} ({theirs.get(k)!r} vs {mine[k]!r})" for k in sorted(mine)
-                if theirs.get(k) != mine[k] and k != "temporal_basis"
-                and not (grow and k == "action_token")]
+                if theirs.get(k) != mine[k] and k != "temporal_basis" and k not in grow]
         if diff:
             raise ValueError(f"init_from={cfg.init_from}: its model config differs in "
                              f"{', '.join(diff)}; pass the same model.* settings")
-        if grow:  # the action embedding starts at 0: the same function as theirs
+        if "action_token" in grow:
             emb = net.action_embed.embedding
             tensors = {**tensors, "params/net/action_embed/embedding": np.zeros(emb.shape,
                                                                                np.float32)}
+        if "traj_velocity" in grow:  # zero rows for the velocity inputs, appended last
+            from jaxmotion.motion.representation import VELOCITY_DIM
+
+            name = "params/net/traj_mlp/fc1/kernel"
+            k = np.asarray(tensors[name])
+            tensors = {**tensors, name: np.concatenate(
+                [k, np.zeros((VELOCITY_DIM, k.shape[1]), k.dtype)], axis=0)}
         apply_weights(net, tensors, prefix="net/", source=str(path))
         return (jnp.asarray(tensors["stats/feature_mean"]),
                 jnp.asarray(tensors["stats/feature_std"]))
@@ -162,6 +169,11 @@ class ObjectCentricTask(DataTask):
                                                                         jnp.int32))
         if cfg.kind == "completion":
             cond["trajectory"] = x0[..., :9]
+            if cfg.traj_velocity:
+                from jaxmotion.constants import SCENE_FPS
+                from jaxmotion.motion.representation import trajectory_velocity
+
+                cond["traj_velocity"] = trajectory_velocity(feats[..., :9], mask, SCENE_FPS)
             if cfg.traj_sensor:
                 sp = self.sensor_points or points.shape[1]
                 cond["traj_sensor"] = jax.lax.stop_gradient(jax.vmap(

@@ -31,14 +31,16 @@ def _cmd_version(args: argparse.Namespace) -> int:
 
 
 def _cmd_scene_info(args: argparse.Namespace) -> int:
-    from jaxmotion.scene import load_scene
+    from jaxmotion.scene import load_scene_and_notes
     from jaxmotion.scene.checks import scene_warnings
     from jaxmotion.scene.demo import demo_scene
 
+    notes = ()
     if args.path == "demo":
         scene = demo_scene()
     else:
-        scene = load_scene(args.path, num_points=args.points, seed=args.seed, up=args.up)
+        scene, notes = load_scene_and_notes(args.path, num_points=args.points, seed=args.seed,
+                                            up=args.up)
     lo, hi = scene.bounds()
     info = {
         "name": scene.name,
@@ -58,6 +60,8 @@ def _cmd_scene_info(args: argparse.Namespace) -> int:
             {"id": o["id"], "category": o["category"],
              "centre": [round(float(a + b) / 2, 3) for a, b in zip(o["bbox_min"], o["bbox_max"])]}
             for o in objects]
+    if notes:
+        info["notes"] = list(notes)
     for message in scene_warnings(scene):
         print(f"warning: {message}", file=sys.stderr)
     print(json.dumps(info, indent=2))
@@ -188,9 +192,10 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     if args.scene != "demo":
         from pathlib import Path
 
-        if not Path(args.scene).is_file():
-            raise FileNotFoundError(f"--scene {args.scene}: no such file; give a mesh or point "
-                                    "cloud (PLY / OBJ / GLB / GLTF / OFF / STL / NPZ) or 'demo'")
+        if not Path(args.scene).exists():
+            raise FileNotFoundError(f"--scene {args.scene}: no such file or folder; give a mesh "
+                                    "or point cloud (PLY / OBJ / GLB / GLTF / OFF / STL / NPZ), a "
+                                    "ScanNet scan folder (scans/scene0000_00) or 'demo'")
     text = DEFAULT_TEXT if args.text is None else args.text
     trajectory = None
     if args.plan is not None:
@@ -272,12 +277,14 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--up", choices=("auto", "z", "y"), default="auto", help="up axis of the file")
 
     q = scene_sub.add_parser("info", help="load a scene and print a summary as JSON")
-    q.add_argument("path", help="PLY / OBJ / GLB / GLTF / OFF / STL / NPZ file, or 'demo'")
+    q.add_argument("path", help="PLY / OBJ / GLB / GLTF / OFF / STL / NPZ file, a ScanNet scan "
+                   "folder (scans/scene0000_00: objects from its aggregation, axis-aligned), a "
+                   "PROX scenes/<Name>.ply, or 'demo'")
     scene_common(q)
     q.set_defaults(func=_cmd_scene_info)
 
     q = scene_sub.add_parser("convert", help="load a scene and save it as jaxmotion .npz")
-    q.add_argument("src", help="input mesh or point cloud")
+    q.add_argument("src", help="input mesh or point cloud, or a ScanNet scan folder")
     q.add_argument("dst", help="output .npz")
     scene_common(q)
     q.set_defaults(func=_cmd_scene_convert)
@@ -373,12 +380,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "generate",
         help="generate motions for a sentence in a room (the main job)",
-        description="Load a room (any mesh or point cloud, a labelled ScanNet-style .ply, or "
-        "'demo'), find the region the sentence is about (or use --object), sample ADM -> AMDM "
+        description="Load a room (any mesh or point cloud, a labelled ScanNet-style .ply, a ScanNet "
+        "scan folder, or 'demo'), find the region the sentence is about (or use --object), sample ADM -> AMDM "
         "with the shipped checkpoints, fit SMPL-X bodies, and write motion.npz, motion.bvh, "
         "motion.glb, motion.gif (or .mp4) and viewer.html to --out.",
     )
-    p.add_argument("--scene", default="demo", help="scene file, or 'demo' (default)")
+    p.add_argument("--scene", default="demo",
+                   help="scene file, ScanNet scan folder, or 'demo' (default)")
     p.add_argument("--text", default=None,
                    help='the instruction (default: "sit on the chair next to the table")')
     p.add_argument("--plan", default=None, metavar="PLAN.json",

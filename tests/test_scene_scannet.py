@@ -63,8 +63,9 @@ def write_ply(path, xyz, faces, rgba=None, label=None):
     Path(path).write_bytes(("\n".join(head) + "\n").encode() + v.tobytes() + f.tobytes())
 
 
-def make_scan(folder: Path, *, align=None, labels_ply=False, with_txt=True):
-    """A ScanNet scan of BOXES; returns (raw float32 vertices [V, 3], box index per vertex, A)."""
+def make_scan(folder: Path, *, align=None, labels_ply=False, with_txt=True, sid=SID):
+    """A ScanNet scan ``sid`` of BOXES in ``folder``; returns (raw float32 vertices [V, 3], box
+    index per vertex, its axisAlignment A)."""
     a = _alignment() if align is None else align
     folder.mkdir(parents=True, exist_ok=True)
     verts, faces, owner = [], [], []
@@ -77,26 +78,26 @@ def make_scan(folder: Path, *, align=None, labels_ply=False, with_txt=True):
     raw = ((aligned - a[:3, 3]) @ a[:3, :3]).astype(np.float32)  # the inverse of A
     faces = np.concatenate(faces)
     rng = np.random.default_rng(0)
-    write_ply(folder / f"{SID}_vh_clean_2.ply", raw, faces,
+    write_ply(folder / f"{sid}_vh_clean_2.ply", raw, faces,
               np.concatenate([rng.integers(0, 256, (len(raw), 3)),
                               np.full((len(raw), 1), 255)], 1).astype(np.uint8))
     # two segments per box (its first and last four vertices), ids as ScanNet's: sparse ints
     seg = np.array([1000 + 37 * (2 * k + (j >= 4)) for k in range(len(BOXES)) for j in range(8)])
-    (folder / f"{SID}_vh_clean_2.0.010000.segs.json").write_text(json.dumps(
-        {"params": {"kThresh": "0.0001", "segMinVerts": "20"}, "sceneId": SID,
+    (folder / f"{sid}_vh_clean_2.0.010000.segs.json").write_text(json.dumps(
+        {"params": {"kThresh": "0.0001", "segMinVerts": "20"}, "sceneId": sid,
          "segIndices": seg.tolist()}))
     groups = [{"id": oid, "objectId": oid, "segments": [1000 + 74 * k, 1000 + 74 * k + 37],
                "label": BOXES[k][0]} for k, oid in enumerate(OBJECT_IDS)]
-    (folder / f"{SID}.aggregation.json").write_text(json.dumps(
-        {"sceneId": f"scannet.{SID}", "appId": "Aggregator.v2", "segGroups": groups,
-         "segmentsFile": f"scannet.{SID}_vh_clean_2.0.010000.segs.json"}))
+    (folder / f"{sid}.aggregation.json").write_text(json.dumps(
+        {"sceneId": f"scannet.{sid}", "appId": "Aggregator.v2", "segGroups": groups,
+         "segmentsFile": f"scannet.{sid}_vh_clean_2.0.010000.segs.json"}))
     if with_txt:
-        (folder / f"{SID}.txt").write_text(
+        (folder / f"{sid}.txt").write_text(
             "axisAlignment = " + " ".join(f"{v:.9f}" for v in a.reshape(-1)) + "\n"
             "colorHeight = 968\ncolorWidth = 1296\nnumColorFrames = 5578\n")
     if labels_ply:  # NYU40 per vertex: 39 (otherfurniture) on the trash can
         lab = np.array([{0: 2, 5: 39}.get(k, 0) for k in owner], np.uint16)
-        write_ply(folder / f"{SID}_vh_clean_2.labels.ply", raw, faces, label=lab)
+        write_ply(folder / f"{sid}_vh_clean_2.labels.ply", raw, faces, label=lab)
     return raw, np.array(owner), a
 
 

@@ -31,14 +31,16 @@ def _cmd_version(args: argparse.Namespace) -> int:
 
 
 def _cmd_scene_info(args: argparse.Namespace) -> int:
-    from jaxmotion.scene import load_scene
+    from jaxmotion.scene import load_scene_and_notes
     from jaxmotion.scene.checks import scene_warnings
     from jaxmotion.scene.demo import demo_scene
 
+    notes = ()
     if args.path == "demo":
         scene = demo_scene()
     else:
-        scene = load_scene(args.path, num_points=args.points, seed=args.seed, up=args.up)
+        scene, notes = load_scene_and_notes(args.path, num_points=args.points, seed=args.seed,
+                                            up=args.up)
     lo, hi = scene.bounds()
     info = {
         "name": scene.name,
@@ -58,6 +60,8 @@ def _cmd_scene_info(args: argparse.Namespace) -> int:
             {"id": o["id"], "category": o["category"],
              "centre": [round(float(a + b) / 2, 3) for a, b in zip(o["bbox_min"], o["bbox_max"])]}
             for o in objects]
+    if notes:
+        info["notes"] = list(notes)
     for message in scene_warnings(scene):
         print(f"warning: {message}", file=sys.stderr)
     print(json.dumps(info, indent=2))
@@ -92,6 +96,10 @@ def _cmd_synth(args: argparse.Namespace) -> int:
 
 
 def _cmd_data_convert(args: argparse.Namespace) -> int:
+    if args.kind == "humanise":
+        return _convert_humanise(args)
+    if args.scannet is not None or args.points is not None:
+        raise ValueError("--scannet and --points apply to --from humanise only")
     from jaxmotion.io.convert import convert
 
     options = {"action": args.action, "max_frames": args.max_frames,
@@ -105,6 +113,29 @@ def _cmd_data_convert(args: argparse.Namespace) -> int:
     src = manifest["sources"]
     print(f"dataset in {args.out}: samples {manifest['samples']}, sources {src['done']} of "
           f"{src['total']} ({src['failed']} failed), {manifest['build_seconds_this_run']} s")
+    for e in manifest["errors"][:5]:
+        print(f"warning: skipped {e['error']}", file=sys.stderr)
+    return 0
+
+
+def _convert_humanise(args: argparse.Namespace) -> int:
+    from jaxmotion.io.humanise_convert import convert_humanise
+
+    others = {"--action": args.action != "walk", "--captions": args.captions != "first",
+              "--fit-iters": args.fit_iters != 200, "--keep-height": args.keep_height,
+              "--up / --unit / --joint-map": (args.up, args.unit, args.joint_map) != (
+                  "y", "auto", "auto")}
+    if given := [k for k, v in others.items() if v]:
+        raise ValueError(f"{', '.join(given)} do not apply to HUMANISE (it has its own actions, "
+                         "texts, SMPL-X parameters and heights)")
+    manifest = convert_humanise(args.src, args.out, scannet=args.scannet,
+                                points=50_000 if args.points is None else args.points,
+                                max_frames=args.max_frames, min_frames=args.min_frames,
+                                split=args.split, stats=not args.no_stats)
+    src = manifest["sources"]
+    print(f"dataset in {args.out}: samples {manifest['samples']}, scenes "
+          f"{manifest['scenes']['total']}, sources {src['done']} of {src['total']} "
+          f"({src['failed']} failed), {manifest['build_seconds_this_run']} s")
     for e in manifest["errors"][:5]:
         print(f"warning: skipped {e['error']}", file=sys.stderr)
     return 0
@@ -188,9 +219,10 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     if args.scene != "demo":
         from pathlib import Path
 
-        if not Path(args.scene).is_file():
-            raise FileNotFoundError(f"--scene {args.scene}: no such file; give a mesh or point "
-                                    "cloud (PLY / OBJ / GLB / GLTF / OFF / STL / NPZ) or 'demo'")
+        if not Path(args.scene).exists():
+            raise FileNotFoundError(f"--scene {args.scene}: no such file or folder; give a mesh "
+                                    "or point cloud (PLY / OBJ / GLB / GLTF / OFF / STL / NPZ), a "
+                                    "ScanNet scan folder (scans/scene0000_00) or 'demo'")
     text = DEFAULT_TEXT if args.text is None else args.text
     trajectory = None
     if args.plan is not None:
@@ -272,12 +304,14 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--up", choices=("auto", "z", "y"), default="auto", help="up axis of the file")
 
     q = scene_sub.add_parser("info", help="load a scene and print a summary as JSON")
-    q.add_argument("path", help="PLY / OBJ / GLB / GLTF / OFF / STL / NPZ file, or 'demo'")
+    q.add_argument("path", help="PLY / OBJ / GLB / GLTF / OFF / STL / NPZ file, a ScanNet scan "
+                   "folder (scans/scene0000_00: objects from its aggregation, axis-aligned), a "
+                   "PROX scenes/<Name>.ply, or 'demo'")
     scene_common(q)
     q.set_defaults(func=_cmd_scene_info)
 
     q = scene_sub.add_parser("convert", help="load a scene and save it as jaxmotion .npz")
-    q.add_argument("src", help="input mesh or point cloud")
+    q.add_argument("src", help="input mesh or point cloud, or a ScanNet scan folder")
     q.add_argument("dst", help="output .npz")
     scene_common(q)
     q.set_defaults(func=_cmd_scene_convert)
@@ -307,7 +341,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--preview-split", default="train", choices=("train", "val", "test"))
     p.set_defaults(func=_cmd_synth)
 
-    data = sub.add_parser("data", help="bring real motion data (HumanML3D, AMASS, BVH) in")
+    data = sub.add_parser("data",
+                          help="bring real motion data (HumanML3D, AMASS, BVH, HUMANISE) in")
     data_sub = data.add_subparsers(dest="data_command", metavar="ACTION", required=True)
     q = data_sub.add_parser(
         "convert",
@@ -316,11 +351,17 @@ def build_parser() -> argparse.ArgumentParser:
         "(a file or a folder, searched recursively) and write DIR/scenes/floor.npz, "
         "DIR/samples/{train,val,test}/*.npz, DIR/manifest.json and DIR/stats.npz: clips of at "
         "most 120 frames at 30 fps on a flat floor, labelled 'walk' unless --action says "
-        "otherwise. Resumable: run the same command again to continue.",
+        "otherwise. HUMANISE (--from humanise, with --scannet) keeps its actions, texts and "
+        "target objects, each motion in its ScanNet room (DIR/scenes/<scene_id>.npz). "
+        "Resumable: run the same command again to continue.",
     )
     q.add_argument("src", help="the source file or folder")
-    q.add_argument("--from", dest="kind", required=True, choices=("humanml3d", "amass", "bvh"),
-                   help="the source format")
+    q.add_argument("--from", dest="kind", required=True,
+                   choices=("humanml3d", "amass", "bvh", "humanise"), help="the source format")
+    q.add_argument("--scannet", default=None, metavar="DIR",
+                   help="HUMANISE: your ScanNet folder holding scans/<scene_id>/ (required)")
+    q.add_argument("--points", type=int, default=None,
+                   help="HUMANISE: surface points per ScanNet room (default 50000)")
     q.add_argument("--out", required=True, help="dataset folder")
     q.add_argument("--action", default="walk", choices=("walk", "sit", "stand_up", "lie"),
                    help="action label of every sample (default walk; the sources have none)")
@@ -330,7 +371,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--captions", choices=("first", "all"), default="first",
                    help="HumanML3D: the first caption of a clip, or one sample per caption")
     q.add_argument("--split", choices=("auto", "train", "val", "test"), default="auto",
-                   help="auto: HumanML3D's lists, else a hash of the file path (80/10/10)")
+                   help="auto: HumanML3D's lists; HUMANISE's (ScanNet scenes below 600 train, "
+                   "the others test); else a hash of the file path (80/10/10)")
     q.add_argument("--fit-iters", type=int, default=200,
                    help="SMPL-X fitting iterations for joint-only sources (0: analytic start)")
     q.add_argument("--keep-height", action="store_true",
@@ -373,12 +415,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "generate",
         help="generate motions for a sentence in a room (the main job)",
-        description="Load a room (any mesh or point cloud, a labelled ScanNet-style .ply, or "
-        "'demo'), find the region the sentence is about (or use --object), sample ADM -> AMDM "
+        description="Load a room (any mesh or point cloud, a labelled ScanNet-style .ply, a ScanNet "
+        "scan folder, or 'demo'), find the region the sentence is about (or use --object), sample ADM -> AMDM "
         "with the shipped checkpoints, fit SMPL-X bodies, and write motion.npz, motion.bvh, "
         "motion.glb, motion.gif (or .mp4) and viewer.html to --out.",
     )
-    p.add_argument("--scene", default="demo", help="scene file, or 'demo' (default)")
+    p.add_argument("--scene", default="demo",
+                   help="scene file, ScanNet scan folder, or 'demo' (default)")
     p.add_argument("--text", default=None,
                    help='the instruction (default: "sit on the chair next to the table")')
     p.add_argument("--plan", default=None, metavar="PLAN.json",

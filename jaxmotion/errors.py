@@ -7,8 +7,13 @@ prints the message on one line and exits with code 2, without a traceback.
 
 from __future__ import annotations
 
-__all__ = ["GenerateError"]
+__all__ = ["GenerateError", "SceneError"]
 
 
 class GenerateError(ValueError):
     """Bad input to :func:`jaxmotion.generate`; the message names the problem and the fix."""
+
+
+class SceneError(ValueError):
+    """A scene file or scan folder is missing, unsupported, unreadable or holds no usable
+    geometry; the message names the file and the fix."""

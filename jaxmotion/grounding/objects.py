@@ -32,15 +32,6 @@ def find_object(room, object_id) -> dict:
     raise GenerateError(f"unknown object id {object_id}; this scene's objects: {valid}")
 
 
-# NYU40 class names (the ScanNet benchmark's label ids) for labelled scans; jaxmotion's own
-# categories (jaxmotion.scene.furniture.CATEGORY_IDS) take precedence for their ids.
-_NYU40 = (
-    "wall", "floor", "cabinet", "bed", "chair", "sofa", "table", "door", "window", "bookshelf",
-    "picture", "counter", "blinds", "desk", "shelves", "curtain", "dresser", "pillow", "mirror",
-    "floor mat", "clothes", "ceiling", "books", "fridge", "tv", "paper", "towel",
-    "shower curtain", "box", "whiteboard", "person", "nightstand", "toilet", "sink", "lamp",
-    "bathtub", "bag", "otherstructure", "otherfurniture", "otherprop",
-)
 _STRUCTURE = {"wall", "floor", "ceiling"}
 _ALIASES = {"refrigerator": "fridge", "television": "tv", "night stand": "nightstand",
             "couch": "sofa", "bookcase": "bookshelf", "settee": "sofa", "bathroom sink": "sink"}
@@ -53,8 +44,10 @@ def object_table(room) -> tuple[dict, ...]:
     if room.objects:
         return tuple(room.objects)
     from jaxmotion.scene.furniture import CATEGORY_IDS
+    from jaxmotion.scene.scans import NYU40_CLASSES
 
-    names = {i + 1: n for i, n in enumerate(_NYU40)}
+    # NYU40 names (ScanNet's label ids); jaxmotion's own categories take precedence for theirs
+    names = {i + 1: n for i, n in enumerate(NYU40_CLASSES)}
     names.update({v: k for k, v in CATEGORY_IDS.items()})
     out = []
     for inst in np.unique(room.instance[room.instance >= 0]):

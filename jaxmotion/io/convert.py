@@ -73,7 +73,8 @@ from jaxmotion.motion.kinematics import TOE_HEIGHT
 from jaxmotion.scene.furniture import CATEGORY_IDS
 from jaxmotion.scene.io import Scene, save_scene
 
-__all__ = ["CONVERT_KINDS", "FLOOR_SCENE_ID", "ConvertSettings", "convert", "floor_scene"]
+__all__ = ["CONVERT_KINDS", "FLOOR_SCENE_ID", "ConvertSettings", "check_out_folder", "convert",
+           "finished_source", "floor_scene", "source_key"]
 
 CONVERT_KINDS = ("humanml3d", "amass", "bvh")
 FLOOR_SCENE_ID = "floor"
@@ -136,7 +137,7 @@ def floor_scene(size: float = 20.0, spacing: float = 0.04) -> Scene:
 
 
 # ----------------------------------------------------------------------------- sources
-def _key(rel: str) -> str:
+def source_key(rel: str) -> str:
     """A file-name-safe, unique id for a source path."""
     stem = re.sub(r"[^A-Za-z0-9_-]+", "_", rel.rsplit(".", 1)[0]).strip("_")[-60:]
     return f"{stem}-{hashlib.sha1(rel.encode()).hexdigest()[:6]}"
@@ -175,7 +176,7 @@ def _sources(settings: ConvertSettings, src: Path) -> list[tuple[str, str, Path]
         out = []
         for p in files:
             rel = p.relative_to(base).as_posix()
-            out.append((_key(rel), _hash_split(rel), p))
+            out.append((source_key(rel), _hash_split(rel), p))
     if not out:
         raise MotionFormatError(f"{src}: no {kind} motions found")
     if settings.split != "auto":
@@ -283,7 +284,8 @@ def _convert_source(root: Path, settings: ConvertSettings, key: str, split: str,
     return record
 
 
-def _done(root: Path, key: str) -> dict | None:
+def finished_source(root: Path, key: str) -> dict | None:
+    """The record of source ``key`` when it was converted and all its files exist, else None."""
     marker = root / ".convert" / "done" / f"{key}.json"
     if not marker.is_file():
         return None
@@ -294,7 +296,8 @@ def _done(root: Path, key: str) -> dict | None:
     return record if all((root / f).is_file() for f in record.get("files", [])) else None
 
 
-def _check_existing(root: Path, settings: dict) -> None:
+def check_out_folder(root: Path, settings: dict) -> None:
+    """DatasetError when ``root`` holds another dataset or a conversion with other settings."""
     saved = root / ".convert" / "settings.json"
     if (root / "manifest.json").is_file():
         old = load_manifest(root).get("convert_settings")
@@ -348,7 +351,7 @@ def convert(kind: str, src, out, *, progress: bool = True, stats: bool = True,
     root, src = Path(out), Path(src)
     sources = _sources(settings, src)
     settings_dict = json.loads(json.dumps(asdict(settings)))
-    _check_existing(root, settings_dict)
+    check_out_folder(root, settings_dict)
     write_json_atomic(root / ".convert" / "settings.json", settings_dict)
     scene_path = root / "scenes" / f"{FLOOR_SCENE_ID}.npz"
     if not scene_path.is_file():
@@ -359,7 +362,7 @@ def convert(kind: str, src, out, *, progress: bool = True, stats: bool = True,
     records, errors, converted = [], [], 0
     for key, split, path in tqdm(sources, desc=f"convert {kind}", unit="file",
                                  disable=not progress):
-        record = _done(root, key)
+        record = finished_source(root, key)
         if record is None:
             try:
                 record = _convert_source(root, settings, key, split, path)

@@ -12,6 +12,7 @@ from jaxmotion.scene.io import (
     Scene,
     SceneError,
     load_scene,
+    load_scene_and_notes,
     save_scene,
     scene_to_trimesh_points,
 )

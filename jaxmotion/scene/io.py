@@ -3,7 +3,8 @@
 A :class:`Scene` is a coloured, labelled point cloud in the jaxmotion world frame (metres,
 z-up, floor at z = 0) plus an object table. :func:`load_scene` reads meshes and point
 clouds through trimesh (PLY / OBJ / GLB / GLTF / OFF / STL; meshes are sampled on their
-surface, area-weighted) or the ``.npz`` files written by :func:`save_scene`.
+surface, area-weighted, :mod:`~jaxmotion.scene.meshes`), the ``.npz`` files written by
+:func:`save_scene`, ScanNet scan folders and PROX scene meshes (:mod:`~jaxmotion.scene.scans`).
 """
 
 from __future__ import annotations
@@ -18,23 +19,22 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from jaxmotion._atomic import atomic_open
+from jaxmotion.errors import SceneError
+from jaxmotion.scene.meshes import DEFAULT_MESH_POINTS, GREY, read_geometry
+from jaxmotion.scene.scans import find_scan, read_scan
 
 if TYPE_CHECKING:  # imported on use: ~0.2 s that loading a .npz scene does not need
     import trimesh
 
+__all__ = ["DEFAULT_MESH_POINTS", "NPZ_KEYS", "SUPPORTED_EXTENSIONS", "Y_UP_TO_Z_UP", "Scene",
+           "SceneError", "load_scene", "load_scene_and_notes", "save_scene",
+           "scene_to_trimesh_points"]
+
 SUPPORTED_EXTENSIONS = (".ply", ".obj", ".glb", ".gltf", ".off", ".stl", ".npz")
 NPZ_KEYS = ("xyz", "rgb", "normal", "semantic", "instance", "objects", "name")
-DEFAULT_MESH_POINTS = 100_000
-SEMANTIC_PROPERTIES = ("label",)  # ScanNet / NYU40 per-vertex semantic id
-INSTANCE_PROPERTIES = ("instance", "objectId", "instance_id")
 # (x, y, z) -> (x, -z, y): a +90 degree rotation about x taking y-up files to z-up.
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
-_GREY = 0.5
 _UNIT_TOL = 1e-3
-
-
-class SceneError(ValueError):
-    """A scene file is missing, unsupported, unreadable or holds no usable geometry."""
 
 
 def _checked(name, value, n, width=None):
@@ -107,7 +107,7 @@ class Scene:
     def __post_init__(self):
         xyz = _checked("xyz", self.xyz, None, 3)
         n = len(xyz)
-        rgb = _checked("rgb", np.full((n, 3), _GREY) if self.rgb is None else self.rgb, n, 3)
+        rgb = _checked("rgb", np.full((n, 3), GREY) if self.rgb is None else self.rgb, n, 3)
         if rgb.size and (rgb.min() < 0.0 or rgb.max() > 1.0):
             raise ValueError(f"Scene.rgb must lie in [0, 1], got [{rgb.min()}, {rgb.max()}]")
         normal = _checked("normal", np.zeros((n, 3)) if self.normal is None else self.normal, n, 3)
@@ -198,112 +198,6 @@ class Scene:
 
 
 # ------------------------------------------------------------------------------ loading
-def _ply_vertex_property(geom, names, n):
-    """A raw PLY vertex property [n] (first of ``names`` present), or None."""
-    raw = geom.metadata.get("_ply_raw") or {}  # trimesh keeps the parsed PLY elements here
-    data = raw.get("vertex", {}).get("data") if isinstance(raw, Mapping) else None
-    keys = () if data is None else data.keys() if isinstance(data, Mapping) else data.dtype.names
-    for name in names:
-        if name in (keys or ()):
-            value = np.asarray(data[name]).reshape(-1)  # ASCII PLY columns come as [n, 1]
-            return value if len(value) == n else None
-    return None
-
-
-def _vertex_colors(geom, n):
-    """Per-vertex RGB [n, 3] in [0, 1] of a mesh or point cloud, or None when undefined."""
-    import trimesh
-
-    if isinstance(geom, trimesh.PointCloud):
-        c = np.asarray(geom.colors)
-    elif geom.visual.kind == "vertex":
-        c = np.asarray(geom.visual.vertex_colors)
-    elif geom.visual.kind == "texture":
-        try:  # image textures need PIL; a plain material colour works without
-            c = np.asarray(geom.visual.to_color().vertex_colors)
-        except Exception:
-            c = np.asarray(getattr(geom.visual.material, "main_color", None))
-    else:
-        return None
-    if c.ndim == 1 and c.shape[0] in (3, 4):  # one colour for the whole material
-        c = np.broadcast_to(c, (n, c.shape[0]))
-    if c.ndim != 2 or c.shape[0] != n or c.shape[1] < 3:
-        return None
-    return c[:, :3].astype(np.float64) / (255.0 if c.dtype.kind in "iu" else 1.0)
-
-
-def _vertex_data(geom):
-    """Per-vertex Scene arrays of one mesh / point cloud (grey, zero normals, -1 if unknown)."""
-    n = len(geom.vertices)
-    rgb = _vertex_colors(geom, n)
-    labels = [_ply_vertex_property(geom, p, n) for p in (SEMANTIC_PROPERTIES, INSTANCE_PROPERTIES)]
-    sem, ins = (np.full(n, -1, np.int64) if v is None else v.astype(np.int64) for v in labels)
-    normal = [_ply_vertex_property(geom, (c,), n) for c in ("nx", "ny", "nz")]
-    normal = np.zeros((n, 3)) if any(c is None for c in normal) else np.stack(normal, 1)
-    normal, norms = normal.astype(np.float64), np.linalg.norm(normal, axis=1, keepdims=True)
-    return dict(xyz=np.asarray(geom.vertices, np.float64),
-                rgb=np.full((n, 3), _GREY) if rgb is None else rgb,
-                normal=np.where(norms > 1e-8, normal / np.maximum(norms, 1e-8), 0.0),
-                semantic=sem, instance=ins)
-
-
-def _concatenate(parts):
-    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-
-
-def _sample_meshes(meshes, count, seed):
-    """Area-weighted surface samples of all meshes in one draw -> Scene arrays (or None)."""
-    import trimesh
-
-    parts = [_vertex_data(m) for m in meshes]
-    offsets = np.cumsum([0] + [len(m.vertices) for m in meshes])
-    faces = np.concatenate([np.asarray(m.faces, np.int64) + o for m, o in zip(meshes, offsets)])
-    corners = np.concatenate([  # RGB at each face corner [F, 3, 3]
-        np.repeat(np.asarray(m.visual.face_colors)[:, None, :3] / 255.0, 3, axis=1)
-        if m.visual.kind == "face" else p["rgb"][m.faces] for m, p in zip(meshes, parts)])
-    v = _concatenate(parts)
-    mesh = trimesh.Trimesh(v["xyz"], faces, process=False)
-    if not mesh.area_faces.sum() > 0:
-        return None
-    xyz, fi, bary = trimesh.sample.sample_surface(mesh, count, return_barycentric=True, seed=seed)
-    tri = faces[fi]
-    normal = np.asarray(mesh.face_normals)[fi]
-    # Face normals are exact on flat faces; file normals (PLY nx ny nz) only fix their sign.
-    hint = np.einsum("nk,nkc->nc", bary, v["normal"][tri])
-    normal = np.where((np.einsum("nc,nc->n", hint, normal) < 0)[:, None], -normal, normal)
-    rgb = np.clip(np.einsum("nk,nkc->nc", bary, corners[fi]), 0.0, 1.0)
-    nearest = tri[np.arange(len(tri)), np.argmax(bary, axis=1)]  # closest corner's labels
-    return dict(xyz=xyz, rgb=rgb, normal=normal,
-                semantic=v["semantic"][nearest], instance=v["instance"][nearest])
-
-
-def _load_geometry(path, ext, num_points, seed):
-    """Scene arrays of a mesh / point-cloud file read by trimesh."""
-    import trimesh
-
-    try:  # process=False keeps vertex order, so raw PLY vertex properties still line up
-        geoms = trimesh.load_scene(str(path), process=False).dump()  # node transforms baked in
-    except Exception as e:
-        raise SceneError(f"{path}: trimesh could not parse this {ext} file ({type(e).__name__}: "
-                         f"{e}); check that it is complete and really a valid {ext} file") from e
-    has_faces = [isinstance(g, trimesh.Trimesh) and len(g.faces) > 0 for g in geoms]
-    meshes = [g for g, f in zip(geoms, has_faces) if f]
-    clouds = [g for g, f in zip(geoms, has_faces) if not f and len(getattr(g, "vertices", ())) and
-              isinstance(g, (trimesh.Trimesh, trimesh.PointCloud))]
-    if not meshes and not clouds:
-        raise SceneError(f"{path}: the file holds no points or faces; export geometry into it")
-    if not all(np.isfinite(np.asarray(g.vertices, np.float64)).all() for g in meshes + clouds):
-        raise SceneError(f"{path}: the geometry has NaN/inf vertex coordinates; fix or remove them")
-    if not meshes:  # point clouds: every point kept
-        return _concatenate([_vertex_data(g) for g in clouds])
-    # A surface is present: stray point clouds in the same file are ignored.
-    arrays = _sample_meshes(meshes, num_points or DEFAULT_MESH_POINTS, seed)
-    if arrays is None:
-        raise SceneError(f"{path}: the mesh has zero surface area (all faces degenerate), so no "
-                         "points can be sampled; check the file's faces and units")
-    return arrays
-
-
 def _load_npz(path):
     try:
         with np.load(path, allow_pickle=False) as z:
@@ -323,7 +217,7 @@ def _load_npz(path):
 
 
 def load_scene(path, *, num_points: int | None = None, seed: int = 0, up: str = "auto") -> Scene:
-    """Load a scene file as a z-up :class:`Scene` (metres).
+    """Load a scene file or scan as a z-up :class:`Scene` (metres).
 
     Meshes (any faces) give ``num_points`` area-weighted surface samples (default 100_000)
     with face normals, barycentric-interpolated colours (vertex, texture or face colours;
@@ -332,31 +226,54 @@ def load_scene(path, *, num_points: int | None = None, seed: int = 0, up: str = 
     with their colours and PLY ``nx ny nz`` normals (zeros when absent). PLY vertex
     properties ``label`` -> ``semantic``; ``instance`` / ``objectId`` / ``instance_id`` ->
     ``instance``. ``.npz`` files from :func:`save_scene` load exactly (subset as above).
+    A ScanNet scan folder (or its ``_vh_clean_2.ply`` with the annotations beside it) gives
+    its objects and categories in the axis-aligned frame; a PROX ``scenes/<Name>.ply`` has
+    its floor moved to z = 0 (:mod:`jaxmotion.scene.scans`, :func:`load_scene_and_notes`).
 
     Args:
-      path: file path, one of :data:`SUPPORTED_EXTENSIONS` (case-insensitive).
+      path: file path, one of :data:`SUPPORTED_EXTENSIONS` (case-insensitive), or a ScanNet
+        scan folder.
       num_points: number of points wanted (> 0), see above.
       seed: sampling seed; the same seed gives identical points.
       up: ``'z'`` (file is z-up), ``'y'`` (rotate (x, y, z) -> (x, -z, y)) or ``'auto'``:
         ``'y'`` for .glb/.gltf (y-up by the glTF spec), ``'z'`` otherwise.
-    Raises SceneError (missing/unknown/unparsable file, no geometry, NaN/inf, zero area).
+    Raises SceneError (missing/unknown/unparsable file, no geometry, NaN/inf, zero area, a
+    scan missing its annotation files).
     """
+    return load_scene_and_notes(path, num_points=num_points, seed=seed, up=up)[0]
+
+
+def load_scene_and_notes(path, *, num_points: int | None = None, seed: int = 0,
+                         up: str = "auto") -> tuple[Scene, tuple[str, ...]]:
+    """:func:`load_scene`, and notes for the user on what a scan held (empty for a plain
+    file): the objects read and the alignment applied (ScanNet), the floor shift and the
+    missing labels (PROX)."""
     path, ext = Path(path), Path(path).suffix.lower()
     if up not in ("auto", "y", "z"):
         raise ValueError(f"up must be 'auto', 'y' or 'z', got {up!r}")
     if num_points is not None and (not isinstance(num_points, (int, np.integer))
                                    or isinstance(num_points, bool) or num_points <= 0):
         raise SceneError(f"{path}: num_points must be a positive int or None, got {num_points!r}")
-    if not path.is_file():
+    scan, notes = find_scan(path), ()
+    if scan is not None and up == "y":
+        raise SceneError(f"{path}: {scan.layout} scans are z-up; leave out up='y' (--up y)")
+    if scan is None and not path.is_file():
         raise SceneError(f"{path}: no such file; check the path (cwd is {os.getcwd()})")
-    if ext not in SUPPORTED_EXTENSIONS:
+    if scan is None and ext not in SUPPORTED_EXTENSIONS:
         raise SceneError(f"{path}: unsupported extension {ext!r}; supported: "
                          f"{', '.join(SUPPORTED_EXTENSIONS)}; convert the file (e.g. in Blender)")
-    if ext == ".npz":
+    if scan is not None:
+        data = read_scan(scan, num_points, seed)
+        notes = data.notes
+        try:
+            scene = Scene(**data.arrays, objects=data.objects, name=data.name)
+        except ValueError as e:
+            raise SceneError(f"{path}: unusable data in the scan: {e}") from e
+    elif ext == ".npz":
         scene = _load_npz(path)
     else:
         try:
-            scene = Scene(**_load_geometry(path, ext, num_points, seed), name=path.stem)
+            scene = Scene(**read_geometry(path, ext, num_points, seed), name=path.stem)
         except SceneError:
             raise
         except ValueError as e:
@@ -366,7 +283,7 @@ def load_scene(path, *, num_points: int | None = None, seed: int = 0, up: str = 
         scene = scene.subset(np.sort(keep))
     if up == "y" or (up == "auto" and ext in (".glb", ".gltf")):
         scene = scene.transformed(Y_UP_TO_Z_UP)
-    return scene
+    return scene, notes
 
 
 def save_scene(scene: Scene, path) -> Path:

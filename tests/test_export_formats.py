@@ -223,7 +223,7 @@ def test_glb_skin_and_animation_match_body_forward(tmp_path):
 
     gltf, binary = _read_glb(path)
     assert gltf["asset"]["version"] == "2.0"
-    assert len(gltf["skins"]) == k and len(gltf["skins"][0]["joints"]) == 54
+    assert len(gltf["skins"]) == k and len(gltf["skins"][0]["joints"]) == 52
     (anim,) = gltf["animations"]
     assert len(anim["channels"]) == k * 23
     assert {s["interpolation"] for s in anim["samplers"]} == {"LINEAR"}

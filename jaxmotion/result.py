@@ -15,7 +15,8 @@ __all__ = ["OUTPUT_FILES", "Generation"]
 
 #: The files :meth:`Generation.save` writes (``motion.mp4`` instead of the GIF with
 #: ``video="mp4"``).
-OUTPUT_FILES = ("motion.npz", "motion.bvh", "motion.glb", "motion.gif", "viewer.html")
+OUTPUT_FILES = ("motion.npz", "motion.bvh", "motion_smplx.npz", "motion.glb", "motion.gif",
+                "viewer.html")
 
 
 @dataclasses.dataclass
@@ -106,7 +107,8 @@ class Generation:
     def save(self, out, *, video: str | None = "gif", bvh_sample: int = 0) -> dict[str, Path]:
         """Write the outputs into folder ``out``; returns ``{name: path}``. See
         :func:`jaxmotion.export.write_generation`: ``motion.npz`` (every field),
-        ``motion.bvh`` (sample ``bvh_sample``), ``motion.glb``, ``motion.gif`` /
+        ``motion.bvh`` and ``motion_smplx.npz`` (AMASS-style SMPL-X; sample ``bvh_sample``),
+        ``motion.glb``, ``motion.gif`` /
         ``motion.mp4`` (``video="gif"|"mp4"``, None to skip) and ``viewer.html``; an error or
         an interrupt leaves no half-written file and no new empty folder."""
         from jaxmotion.export.folder import write_generation

@@ -23,7 +23,7 @@ from jaxmotion.export import (
     write_glb,
     write_viewer_html,
 )
-from jaxmotion.geometry import JOINT_NAMES, PARENTS, smplx_joints
+from jaxmotion.geometry import PARENTS, SMPLX_JOINT_NAMES, smplx_joints
 
 Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # Rx(-90°)
 _forward = jax.jit(body_forward, static_argnames="normals")
@@ -85,10 +85,11 @@ def test_bvh_round_trip_reproduces_smplx_joints(tmp_path, with_betas):
     betas = np.random.default_rng(1).normal(size=10) if with_betas else None
     path = write_bvh(tmp_path / "m.bvh", go, bp, tr, betas, 30.0)
     bvh = read_bvh(path)
-    assert sorted(bvh.names) == sorted(JOINT_NAMES)
-    order = [bvh.names.index(n) for n in JOINT_NAMES]
+    names = SMPLX_JOINT_NAMES[:22]  # the SMPL-X add-on's bone names, as in motion.glb
+    assert sorted(bvh.names) == sorted(names)
+    order = [bvh.names.index(n) for n in names]
     assert [bvh.names[p] if p >= 0 else None for p in bvh.parents[order]] == [
-        JOINT_NAMES[p] if p >= 0 else None for p in PARENTS
+        names[p] if p >= 0 else None for p in PARENTS
     ]
     assert bvh.frames.shape == (7, 6 + 21 * 3)
     assert bvh.frame_time == pytest.approx(1 / 30)
@@ -223,7 +224,7 @@ def test_glb_skin_and_animation_match_body_forward(tmp_path):
 
     gltf, binary = _read_glb(path)
     assert gltf["asset"]["version"] == "2.0"
-    assert len(gltf["skins"]) == k and len(gltf["skins"][0]["joints"]) == 54
+    assert len(gltf["skins"]) == k and len(gltf["skins"][0]["joints"]) == 52
     (anim,) = gltf["animations"]
     assert len(anim["channels"]) == k * 23
     assert {s["interpolation"] for s in anim["samplers"]} == {"LINEAR"}

@@ -171,8 +171,8 @@ def test_save_writes_every_output_that_readers_open(result, tmp_path):
     from jaxmotion.export import read_bvh
 
     files = result.save(tmp_path / "out")
-    assert sorted(files) == sorted(["motion.npz", "motion.bvh", "motion.glb", "motion.gif",
-                                    "viewer.html"])
+    assert sorted(files) == sorted(["motion.npz", "motion.bvh", "motion_smplx.npz", "motion.glb",
+                                    "motion.gif", "viewer.html"])
     d = np.load(files["motion.npz"])
     assert d["joints"].shape == (2, 120, 22, 3) and float(d["fps"]) == 30.0
     assert str(d["text"]) == result.text and d["body_pose"].shape == (2, 120, 21, 3)

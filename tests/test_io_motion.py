@@ -12,7 +12,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from jaxmotion.geometry import JOINT_NAMES, PARENTS, rest_joints_host, smplx_joints
+from jaxmotion.geometry import (
+    JOINT_NAMES,
+    PARENTS,
+    SMPLX_JOINT_NAMES,
+    rest_joints_host,
+    smplx_joints,
+)
 from jaxmotion.io import (
     Motion,
     MotionFormatError,
@@ -43,7 +49,7 @@ def _reference(go, bp, tr, betas):
 
 
 # --------------------------------------------------------------------------- a BVH writer
-def _smplx_skeleton(betas, names=JOINT_NAMES):
+def _smplx_skeleton(betas, names=SMPLX_JOINT_NAMES):
     """(name, parent index, offset, rotation source) of the SMPL-X tree; source = SMPL-X joint."""
     rest = rest_joints_host(betas)
     return [(names[j], PARENTS[j], np.zeros(3) if j == 0 else rest[j] - rest[PARENTS[j]], j)
@@ -172,7 +178,15 @@ def test_bvh_export_round_trip(tmp_path, motion):
 
     go, bp, tr, betas, ref = motion
     write_bvh(tmp_path / "e.bvh", go, bp, tr, betas, 30.0, scale=100)
-    np.testing.assert_allclose(load_motion(tmp_path / "e.bvh").joints, ref, atol=TOL)
+    m = load_motion(tmp_path / "e.bvh")
+    assert m.info["joint_map"] == "smplx"
+    np.testing.assert_allclose(m.joints, ref, atol=TOL)
+    # files from before the export took SMPL-X's names (l_hip, ...) still read
+    path = _write_bvh(tmp_path / "old.bvh", _smplx_skeleton(betas, JOINT_NAMES), go, bp, tr,
+                      betas)
+    old = load_motion(path)
+    assert old.info["joint_map"] == "jaxmotion"
+    np.testing.assert_allclose(old.joints, ref, atol=TOL)
 
 
 def test_bvh_cmu_skeleton_maps_and_fills(tmp_path, motion):

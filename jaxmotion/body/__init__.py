@@ -17,6 +17,7 @@ from jaxmotion.body.model import (
     BodyOutput,
     body_forward,
     forward_tree,
+    joint_names,
     lbs,
     load_mannequin,
     load_smplx,

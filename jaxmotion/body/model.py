@@ -61,13 +61,21 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmotion.geometry.rotations import axis_angle_to_matrix
-from jaxmotion.geometry.skeleton import NUM_BETAS, NUM_JOINTS, PARENTS, Skeleton
+from jaxmotion.geometry.skeleton import (
+    NUM_BETAS,
+    NUM_JOINTS,
+    PARENTS,
+    SMPLX_JOINT_NAMES,
+    SMPLX_PARENTS,
+    Skeleton,
+)
 
 __all__ = [
     "BodyModel",
     "BodyOutput",
     "body_forward",
     "forward_tree",
+    "joint_names",
     "lbs",
     "load_mannequin",
     "load_smplx",
@@ -174,6 +182,39 @@ def _check_tree(parents: tuple[int, ...]) -> None:
         )
     if any(not 0 <= p < j for j, p in enumerate(parents) if j > 0):
         raise ValueError("every joint's parent must come before it in the joint order")
+
+
+def _known_trees() -> dict[tuple[int, ...], tuple[str | None, ...]]:
+    """SMPL-X names of the joints of each joint tree a :class:`BodyModel` can have."""
+    hands = SMPLX_JOINT_NAMES[25:]
+    # SMPL+H's 52 joints: the body, then the 30 finger joints (no jaw, no eyes)
+    smplh = PARENTS + tuple(p - 3 if p > 21 else p for p in SMPLX_PARENTS[25:])
+    # the mannequin's 54: the body, a hand root on each wrist (at the wrist, never turned
+    # on its own, no skin weight: SMPL-X has no such joint), then the fingers on it
+    mannequin = PARENTS + (20, 21) + tuple(
+        (22 if p == 20 else 23 if p == 21 else p - 1) for p in SMPLX_PARENTS[25:])
+    return {
+        SMPLX_PARENTS: SMPLX_JOINT_NAMES,
+        smplh: SMPLX_JOINT_NAMES[:NUM_JOINTS] + hands,
+        mannequin: SMPLX_JOINT_NAMES[:NUM_JOINTS] + (None, None) + hands,
+    }
+
+
+def joint_names(model: BodyModel) -> tuple[str | None, ...]:
+    """The SMPL-X name of each of the model's joints (``SMPLX_JOINT_NAMES``: ``pelvis``,
+    ``left_hip``, …, ``jaw``, ``left_eye_smplhf``, ``left_index1``, …, ``right_thumb3``).
+
+    Known by the joint tree: SMPL-X's 55 joints, SMPL+H's 52 (no jaw or eyes) and the
+    mannequin's 54 (22 body joints, 30 finger joints, no jaw or eyes, and two hand roots
+    that sit on the wrists, are never turned and carry no skin: None, SMPL-X has no
+    such joint). ValueError for any other tree.
+    """
+    names = _known_trees().get(tuple(model.parents))
+    if names is None:
+        raise ValueError(f"no SMPL-X names for a body of {model.num_joints} joints with "
+                         f"parents {model.parents}: expected the SMPL-X (55), SMPL+H (52) "
+                         "or mannequin (54) joint tree")
+    return names
 
 
 # --------------------------------------------------------------------------- loading

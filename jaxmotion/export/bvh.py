@@ -4,7 +4,9 @@ Format
 ------
 ``HIERARCHY``: the pelvis is the ``ROOT`` with six channels ``Xposition
 Yposition Zposition Zrotation Xrotation Yrotation``; the other 21 body joints
-(``jaxmotion.geometry.JOINT_NAMES``) have three, ``Zrotation Xrotation
+(named as in SMPL-X and its Blender add-on, ``jaxmotion.geometry.SMPLX_JOINT_NAMES``:
+``pelvis``, ``left_hip``, …, ``right_wrist``, the bones of ``motion.glb``) have three,
+``Zrotation Xrotation
 Yrotation``, and are listed depth first (children in SMPL-X index order). The
 leaves (feet, head, wrists) end in an ``End Site`` half as long as their bone
 (for display only). ``MOTION``: one line per frame, the channels in the order of
@@ -43,10 +45,10 @@ from scipy.spatial.transform import Rotation
 from jaxmotion._atomic import atomic_open
 from jaxmotion.export._common import Z_UP_TO_Y_UP, check_array, check_fps, smplx_motion
 from jaxmotion.geometry.skeleton import (
-    JOINT_NAMES,
     NUM_BETAS,
     NUM_JOINTS,
     PARENTS,
+    SMPLX_JOINT_NAMES,
     rest_joints_host,
 )
 
@@ -124,7 +126,7 @@ def write_bvh(
         channels = _POS_CHANNELS + _ROT_CHANNELS if j == 0 else _ROT_CHANNELS
         lines.extend(
             [
-                f"{pad}{'ROOT' if j == 0 else 'JOINT'} {JOINT_NAMES[j]}",
+                f"{pad}{'ROOT' if j == 0 else 'JOINT'} {SMPLX_JOINT_NAMES[j]}",
                 f"{pad}{{",
                 f"{pad}  OFFSET {offset[0]:.6f} {offset[1]:.6f} {offset[2]:.6f}",
                 f"{pad}  CHANNELS {len(channels)} {' '.join(channels)}",

@@ -1,7 +1,8 @@
 """The output folder of ``generate``: every file written atomically, nothing half-written.
 
 :func:`write_generation` writes ``motion.npz`` (every field of a
-:class:`~jaxmotion.result.Generation`), ``motion.bvh``, ``motion.glb``, the video and
+:class:`~jaxmotion.result.Generation`), ``motion.bvh``, ``motion_smplx.npz`` (AMASS-style
+SMPL-X parameters), ``motion.glb``, the video and
 ``viewer.html`` (and ``grounding_llm.json``, the language model's prompts and answers, with
 ``--grounding llm``); :func:`check_output_folder` tells before any work whether a folder can take
 them; :func:`summary` is the JSON line the command line prints.
@@ -24,7 +25,9 @@ __all__ = ["check_output_folder", "scene_heat", "summary", "write_generation"]
 def write_generation(res, out, *, video: str | None = "gif", bvh_sample: int = 0) -> dict[str, Path]:
     """Write the outputs into folder ``out`` (created); returns ``{name: path}``.
 
-    ``motion.npz`` (every field), ``motion.bvh`` (sample ``bvh_sample``), ``motion.glb``
+    ``motion.npz`` (every field), ``motion.bvh`` and ``motion_smplx.npz`` (sample
+    ``bvh_sample``; the second an AMASS-style SMPL-X file, :func:`jaxmotion.export.
+    write_amass_npz`), ``motion.glb``
     (skinned mannequins with the room), ``motion.gif`` / ``motion.mp4`` (``video="gif"|"mp4"``,
     None to skip) and ``viewer.html``. Files are built in a temporary folder and moved in
     at the end, so an error leaves no half-written output.
@@ -93,6 +96,8 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
     i = int(bvh_sample)
     export.write_bvh(tmp / "motion.bvh", p["global_orient"][i], p["body_pose"][i],
                      p["transl"][i], p["betas"][i], res.fps)
+    export.write_amass_npz(tmp / "motion_smplx.npz", p["global_orient"][i], p["body_pose"][i],
+                           p["transl"][i], p["betas"][i], res.fps)
     xyz, rgb = _subsample(res.scene.xyz, res.scene.rgb, 60_000, res.seed)
     export.write_glb(tmp / "motion.glb", global_orient=p["global_orient"],
                      body_pose=p["body_pose"], transl=p["transl"], betas=p["betas"],

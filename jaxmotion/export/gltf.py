@@ -4,13 +4,21 @@ What the file holds
 -------------------
 - One **skinned body per sample**: the body mesh baked at its betas (``POSITION``,
   ``NORMAL``, ``JOINTS_0`` / ``WEIGHTS_0`` = the 4 strongest skinning weights per
-  vertex, renormalised), and a skeleton of one node per joint of the body model:
-  the 22 SMPL-X body joints (names from ``jaxmotion.geometry.JOINT_NAMES``,
-  prefixed ``s{k}_``) and any further joints of the model (the mannequin's hands
-  and fingers) held at their fixed pose. Node translations are rest offsets
-  (child − parent bind joint), rotations SMPL-X's local rotations; the
-  inverse bind matrices are ``translate(−bind joint)``: the bind pose is SMPL-X's
-  rest pose (y up, facing +z). Samples sharing betas share the vertex data.
+  vertex, renormalised), and a skeleton of one node per joint, each named with
+  its SMPL-X name (``jaxmotion.geometry.SMPLX_JOINT_NAMES``, the names of the
+  SMPL-X model files and of the SMPL-X Blender add-on's armature: ``pelvis``,
+  ``left_hip``, …, ``left_index1``, …, ``right_thumb3``; the joints that follow
+  the 22 body joints are held at their fixed pose). The mannequin's skeleton has
+  52 of SMPL-X's 55 joints: the 22 body joints and the 30 finger joints; it has no
+  jaw and no eyes, and its two hand roots (on the wrists, never turned on their
+  own) are folded into the wrists, which move exactly as they do
+  (:func:`jaxmotion.body.model.joint_names`). A user's SMPL-X model gives all 55.
+  Each sample's skeleton hangs under its own node ``sample{k}`` (Blender makes it
+  one armature named ``sample{k}``, its bones named as above). Node translations
+  are rest offsets (child − parent bind joint), rotations SMPL-X's local
+  rotations; the inverse bind matrices are ``translate(−bind joint)``: the bind
+  pose is SMPL-X's rest pose (y up, facing +z). Samples sharing betas share the
+  vertex data.
 - **One animation** ("motion") driving every sample together: per body joint a
   rotation channel (unit quaternions ``x, y, z, w``, sign-continuous over time),
   and the root's translation channel (``rest pelvis + transl``, SMPL-X turning
@@ -49,7 +57,7 @@ from jaxmotion.export._common import (
     smplx_motion,
     vertex_normals,
 )
-from jaxmotion.geometry.skeleton import JOINT_NAMES, NUM_JOINTS
+from jaxmotion.geometry.skeleton import NUM_JOINTS
 
 __all__ = ["write_glb"]
 
@@ -112,6 +120,31 @@ def _continuous(q: np.ndarray) -> np.ndarray:
     dots = np.sum(q[1:] * q[:-1], axis=-1)
     signs = np.cumprod(np.where(dots < 0, -1.0, 1.0), axis=0)
     return np.concatenate([q[:1], q[1:] * signs[..., None]], axis=0)
+
+
+def _named_joints(model) -> tuple[list[int], list[int], np.ndarray, list[str]]:
+    """The joints written: ``keep`` (the model's joints with an SMPL-X name), the parent
+    of each among them (−1 for the root), the column ``[J]`` each model joint's skin weights
+    go to, and the names. A joint without an SMPL-X name (the mannequin's hand roots) is
+    folded into its parent: with no rotation of its own it has its parent's skinning
+    transform, and its children's offsets measured from the parent place them the same."""
+    from jaxmotion.body.model import joint_names
+
+    names = joint_names(model)
+    fixed = np.asarray(model.fixed_pose, np.float64)
+    column = np.zeros(model.num_joints, np.int64)
+    keep: list[int] = []
+    for j, name in enumerate(names):
+        if name is None:
+            if np.any(fixed[j] != 0):
+                raise ValueError(f"joint {j} has no SMPL-X name but a fixed rotation "
+                                 f"{fixed[j].tolist()}: it cannot be folded into its parent")
+            column[j] = column[model.parents[j]]
+        else:
+            column[j] = len(keep)
+            keep.append(j)
+    parents = [-1 if model.parents[j] < 0 else int(column[model.parents[j]]) for j in keep]
+    return keep, parents, column, [names[j] for j in keep]
 
 
 def _sample_betas(betas, k: int) -> np.ndarray | None:
@@ -190,20 +223,25 @@ def write_glb(
             continue
         m = model if model is not None else load_mannequin(None if betas is None else betas[s])
         v_rest, j_rest = shaped_rest_host(m, None if betas is None else betas[s])
+        keep, parents, column, names = _named_joints(m)
         faces = np.asarray(m.faces, np.int64)
         normals = vertex_normals(v_rest, faces)
         normals[~np.any(normals, axis=1)] = [0.0, 1.0, 0.0]  # glTF wants unit normals everywhere
-        joint_idx, weights = _strongest(np.asarray(m.weights, np.float64))
-        ibm = np.tile(np.eye(4), (len(j_rest), 1, 1))
-        ibm[:, :3, 3] = -j_rest
+        folded = np.asarray(m.weights, np.float64) @ np.eye(len(keep))[column]
+        joint_idx, weights = _strongest(folded)
+        ibm = np.tile(np.eye(4), (len(keep), 1, 1))
+        ibm[:, :3, 3] = -j_rest[keep]
         shapes[key] = {
             "model": m,
             "j_rest": j_rest,
+            "keep": keep,
+            "parents": parents,
+            "names": names,
             "attributes": {
                 "POSITION": buf.add(v_rest.astype(np.float32), target=_ARRAY_BUFFER, bounds=True),
                 "NORMAL": buf.add(normals.astype(np.float32), target=_ARRAY_BUFFER),
                 "JOINTS_0": buf.add(
-                    joint_idx.astype(np.uint8 if m.num_joints <= 256 else np.uint16),
+                    joint_idx.astype(np.uint8 if len(keep) <= 256 else np.uint16),
                     target=_ARRAY_BUFFER,
                 ),
                 "WEIGHTS_0": buf.add(weights.astype(np.float32), target=_ARRAY_BUFFER),
@@ -240,29 +278,27 @@ def write_glb(
             ],
             axis=1,
         )
-        quat = _continuous(Rotation.from_rotvec(aa.reshape(-1, 3)).as_quat().reshape(t, num, 4))
+        keep, parents, names = shape["keep"], shape["parents"], shape["names"]
+        quat = Rotation.from_rotvec(aa[:, keep].reshape(-1, 3)).as_quat()
+        quat = _continuous(quat.reshape(t, len(keep), 4))
         root_pos = j_rest[0] + tr[s] + [s * spacing, 0.0, 0.0]
-        base = len(nodes)
-        for j in range(num):
-            name = JOINT_NAMES[j] if j < NUM_JOINTS else f"joint{j}"
-            offset = root_pos[0] if j == 0 else j_rest[j] - j_rest[m.parents[j]]
-            node = {
-                "name": f"s{s}_{name}",
-                "translation": offset.tolist(),
-                "rotation": quat[0, j].tolist(),
-            }
-            children = [base + c for c in range(num) if m.parents[c] == j]
+        base = len(nodes) + 1  # after the sample's own node
+        world["children"].append(len(nodes))
+        nodes.append({"name": f"sample{s}", "children": [base]})
+        for i, j in enumerate(keep):
+            offset = root_pos[0] if i == 0 else j_rest[j] - j_rest[keep[parents[i]]]
+            node = {"name": names[i], "translation": offset.tolist(), "rotation": quat[0, i].tolist()}
+            children = [base + c for c in range(len(keep)) if parents[c] == i]
             if children:
                 node["children"] = children
             nodes.append(node)
-        world["children"].append(base)
         animate(base, "translation", root_pos)
-        for j in range(NUM_JOINTS):
-            animate(base + j, "rotation", quat[:, j])
+        for i in range(NUM_JOINTS):  # the body joints come first, in SMPL-X's order
+            animate(base + i, "rotation", quat[:, i])
         gltf["skins"].append(
             {
                 "name": f"sample{s}",
-                "joints": list(range(base, base + num)),
+                "joints": list(range(base, base + len(keep))),
                 "inverseBindMatrices": shape["ibm"],
                 "skeleton": base,
             }

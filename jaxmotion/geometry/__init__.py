@@ -48,6 +48,8 @@ from jaxmotion.geometry.skeleton import (
     NUM_BETAS,
     NUM_JOINTS,
     PARENTS,
+    SMPLX_JOINT_NAMES,
+    SMPLX_PARENTS,
     Skeleton,
     bone_lengths,
     forward_kinematics,

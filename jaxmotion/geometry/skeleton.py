@@ -37,6 +37,8 @@ __all__ = [
     "NUM_BETAS",
     "NUM_JOINTS",
     "PARENTS",
+    "SMPLX_JOINT_NAMES",
+    "SMPLX_PARENTS",
     "Skeleton",
     "bone_lengths",
     "forward_kinematics",
@@ -57,6 +59,22 @@ PARENTS: tuple[int, ...] = (
     -1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19,
 )  # fmt: skip
 NUM_BETAS = 10
+
+# The full SMPL-X skeleton (55 joints) with the names of the SMPL-X model files and of the
+# SMPL-X Blender add-on's armature: the 22 body joints (JOINT_NAMES spelled out), jaw, eyes,
+# then per hand index, middle, pinky, ring, thumb (1 = base, 3 = tip), left hand first.
+_FINGERS = tuple(f"{f}{k}" for f in ("index", "middle", "pinky", "ring", "thumb") for k in (1, 2, 3))
+SMPLX_JOINT_NAMES: tuple[str, ...] = (
+    tuple(n.replace("l_", "left_", 1) if n.startswith("l_") else
+          n.replace("r_", "right_", 1) if n.startswith("r_") else n for n in JOINT_NAMES)
+    + ("jaw", "left_eye_smplhf", "right_eye_smplhf")
+    + tuple(f"left_{f}" for f in _FINGERS) + tuple(f"right_{f}" for f in _FINGERS)
+)
+SMPLX_PARENTS: tuple[int, ...] = (
+    PARENTS + (15, 15, 15)
+    + tuple(20 if k % 3 == 0 else 25 + k - 1 for k in range(15))
+    + tuple(21 if k % 3 == 0 else 40 + k - 1 for k in range(15))
+)
 
 # Index of each joint's left/right counterpart (itself on the midline), used to
 # mirror motions (x -> -x in the body frame, left and right swapped).

@@ -21,7 +21,7 @@ A joint map ``{smplx_joint_name: bvh_joint_name}`` picks the BVH joint whose pos
 each SMPL-X joint (``joint_map``: ``"auto"``, ``"cmu"``, ``"mixamo"``, ``"smplx"``, a
 dict, or a JSON file holding the dict). Names match exactly, else ignoring case and any
 namespace prefix up to the last ``:`` (``mixamorig:Hips`` = ``Hips``). ``"auto"`` takes
-the first built-in map (smplx, mixamo, cmu) whose every name is in the file.
+the first built-in map (smplx, jaxmotion, mixamo, cmu) whose every name is in the file.
 
 - ``cmu`` (the CMU/cgspeed 31-joint skeleton): pelvis Hips; hips LeftUpLeg/RightUpLeg;
   knees LeftLeg/RightLeg; ankles LeftFoot/RightFoot; feet LeftToeBase/RightToeBase;
@@ -31,8 +31,11 @@ the first built-in map (smplx, mixamo, cmu) whose every name is in the file.
 - ``mixamo``: Hips, LeftUpLeg, LeftLeg, LeftFoot, LeftToeBase, Spine, Spine1, Spine2
   (spine3), Neck, Head, LeftShoulder (collar), LeftArm, LeftForeArm, LeftHand, and the
   Right ones, with or without the ``mixamorig:`` prefix.
-- ``smplx``: jaxmotion's own BVH export (:func:`jaxmotion.export.write_bvh`), names =
-  ``JOINT_NAMES``.
+- ``smplx``: SMPL-X's own joint names (``SMPLX_JOINT_NAMES``: ``pelvis``, ``left_hip``,
+  …; the SMPL-X Blender add-on's bones), as jaxmotion's BVH export
+  (:func:`jaxmotion.export.write_bvh`) writes them.
+- ``jaxmotion``: the short names of ``JOINT_NAMES`` (``l_hip``, …), as jaxmotion's BVH
+  export wrote them before it took SMPL-X's names.
 
 **Joints without a counterpart** (a map may leave out any SMPL-X joint but the pelvis
 and the five chain ends: feet, head, wrists) are placed on the straight line from their
@@ -64,7 +67,13 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from jaxmotion.export.bvh import BVH, read_bvh
-from jaxmotion.geometry.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, rest_joints_host
+from jaxmotion.geometry.skeleton import (
+    JOINT_NAMES,
+    NUM_JOINTS,
+    PARENTS,
+    SMPLX_JOINT_NAMES,
+    rest_joints_host,
+)
 from jaxmotion.io.motion import Motion, MotionFormatError, y_up_to_z_up
 
 __all__ = [
@@ -88,7 +97,8 @@ for _p, _side in _SIDES:
         _CMU[_p + _k] = _MIXAMO[_p + _k] = _side + _v
 
 JOINT_MAPS: dict[str, dict[str, str]] = {
-    "smplx": {n: n for n in JOINT_NAMES},
+    "smplx": dict(zip(JOINT_NAMES, SMPLX_JOINT_NAMES)),
+    "jaxmotion": {n: n for n in JOINT_NAMES},
     "mixamo": _MIXAMO,
     "cmu": _CMU,
 }

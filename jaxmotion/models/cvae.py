@@ -216,7 +216,7 @@ class BiGRU(nnx.Module):
     def run(self, x, mask, direction: int):
         h_dim = self.hidden
         gates_x = self.ih[direction](x)  # [B, T, 3H], the input half of every frame at once
-        w, b = self.hh[direction].kernel.value, self.hh[direction].bias.value
+        w, b = self.hh[direction].kernel[...], self.hh[direction].bias[...]
 
         def step(h, inputs):
             gx, m = inputs

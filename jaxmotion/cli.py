@@ -214,7 +214,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         adm_steps=args.adm_steps, guidance=args.guidance, consistency=args.consistency,
         grounding=args.grounding, adm_candidates=args.adm_candidates,
         motion_candidates=args.motion_candidates, checkpoints=ckpt, num_points=args.points,
-        pipeline=args.pipeline, object_checkpoints=objects)
+        pipeline=args.pipeline, object_checkpoints=objects,
+        cvae_checkpoints=None if not args.cvae else tuple(args.cvae))
     check_output_folder(args.out)
     if args.scene != "demo":
         from pathlib import Path
@@ -468,16 +469,23 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a folder with adm.safetensors and amdm.safetensors (and optionally "
                    "adm_text.safetensors, the ADM used when no target object is known), or the "
                    "ADM and AMDM training workdirs (default: the shipped checkpoints)")
-    p.add_argument("--pipeline", choices=("auto", "affordance", "object-centric"),
+    p.add_argument("--pipeline", choices=("auto", "affordance", "object-centric", "cvae"),
                    default="auto",
                    help="object-centric: volumetric sensors around the target -> root "
                    "trajectory -> motion completion (Cen et al. 2024; needs a target object, "
                    "found as for the affordance pipeline); affordance: ADM -> AMDM; auto "
-                   "(default): object-centric when the target object is known, else affordance")
+                   "(default): object-centric when the target object is known, else "
+                   "affordance; cvae: the HUMANISE cVAE baseline (Wang et al. 2022) on the "
+                   "square around the target, from the weights given with --cvae")
     p.add_argument("--object-checkpoints", nargs="+", default=None, metavar="PATH",
                    help="the object-centric models: a folder with trajectory.safetensors and "
                    "completion.safetensors, or their training workdirs (default: the shipped "
                    "ones)")
+    p.add_argument("--cvae", nargs="+", default=None, metavar="PATH",
+                   help="--pipeline cvae's weights: configs/cvae.py training workdirs or "
+                   ".safetensors files, action-specific ones (action=sit ...) and / or an "
+                   "action-agnostic one; the one for the instruction's action is used. No "
+                   "cVAE weights ship with jaxmotion")
     p.add_argument("--video", choices=("gif", "mp4", "none"), default="gif")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=_cmd_generate)

@@ -25,9 +25,9 @@ This module only orchestrates; each stage lives in its own module:
    the target object is known, else the affordance one (:mod:`jaxmotion.pipelines.affordance`:
    ADM maps, then AMDM motions; a known target's class mates are kept out of the maps);
    ``motion_candidates`` motions per sample, the plausible one reaching the target kept;
-5. **fit** SMPL-X bodies to the joints (:func:`jaxmotion.body.fit_joints_to_body`);
-6. the **result** (:class:`jaxmotion.result.Generation`), whose ``save`` writes the files
-   (:mod:`jaxmotion.export.folder`).
+   ``pipeline="cvae"``: the HUMANISE baseline (:mod:`jaxmotion.pipelines.cvae`) on the square;
+5. **fit** SMPL-X bodies to the joints (:func:`jaxmotion.body.fit_joints_to_body`); the
+   **result** (:class:`jaxmotion.result.Generation`) writes the files with ``save``.
 """
 
 from __future__ import annotations
@@ -61,19 +61,19 @@ class _Models:
     spec: object  # the AMDM's CropSpec, no rotation
     frames: int
     room_view: bool
-    objects: tuple | None = None  # (trajectory, completion) files: the object-centric pipeline
+    files: tuple | None = None  # the object-centric (trajectory, completion) or cVAE files
 
     def pipeline(self, adm: Path):
         from jaxmotion.pipelines.checkpoints import load_pipeline
         return load_pipeline(str(adm), str(self.amdm))
 
 
-def _check_models(checkpoints, object_checkpoints=None, pipeline="auto") -> _Models:
+def _check_models(opts: GenerateOptions) -> _Models:
     from jaxmotion.data.crop import crop_spec_from_config
-    from jaxmotion.pipelines.checkpoints import (adm_text_tokens, adm_view, resolve_checkpoints,
-                                                 text_adm_for, weights_config)
+    from jaxmotion.pipelines.checkpoints import (adm_text_tokens, adm_view, pipeline_files,
+                                                 resolve_checkpoints, text_adm_for, weights_config)
 
-    adm_file, amdm_file = resolve_checkpoints(checkpoints)
+    adm_file, amdm_file = resolve_checkpoints(opts.checkpoints)
     mcfg = weights_config(amdm_file)
     if mcfg.get("task") != "amdm" or "crop" not in mcfg:
         raise GenerateError(f"checkpoints {adm_file} and {amdm_file} do not load together: "
@@ -87,16 +87,12 @@ def _check_models(checkpoints, object_checkpoints=None, pipeline="auto") -> _Mod
             raise GenerateError(f"{text_adm} and {adm_file} must read the text the same way "
                                 "(model.text_tokens) and see the same view (crop.centre); "
                                 f"remove {text_adm.name} to use {Path(adm_file).name} alone")
-    objects = None
-    if pipeline != "affordance":  # auto or object-centric
-        from jaxmotion.pipelines.checkpoints import resolve_object_checkpoints
-
-        objects = resolve_object_checkpoints(object_checkpoints)
-        if pipeline == "object-centric":
-            mcfg = weights_config(objects[1])
+    files = pipeline_files(opts)  # the object-centric models' or the cVAE's (None: neither)
+    if opts.pipeline in ("object-centric", "cvae"):  # their crops and motions' length
+        mcfg = weights_config(files[-1])
     return _Models(Path(adm_file), Path(amdm_file), text_adm, adm_cfg,
                    crop_spec_from_config(mcfg), int(mcfg["max_frames"]),
-                   adm_view(adm_cfg) == "room", objects)
+                   adm_view(adm_cfg) == "room", files)
 
 
 def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None = None,
@@ -124,9 +120,8 @@ def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None
                                    trajectory=trajectory)) is not None:
         return told
     from jaxmotion.text.condition import check_text
-    models = _check_models(opts.checkpoints, opts.object_checkpoints, opts.pipeline)
-    text = check_text(text)
-    return _run(scene, text, opts, models, progress)
+    models = _check_models(opts)
+    return _run(scene, check_text(text), opts, models, progress)
 
 
 def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: bool):
@@ -199,18 +194,21 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
             lap("region")
     understood = explain(room, instruction, chosen, how, opts, echo=progress)  # warns, too
 
-    if opts.pipeline == "object-centric" and chosen is None:
-        raise GenerateError("the object-centric pipeline needs a target object, and the "
-                            "text names none of this room's: name one, or pass object_id")
-    pipeline = "object-centric" if models.objects and chosen is not None else "affordance"
-    if pipeline == "object-centric":  # sensors around the target
+    from jaxmotion.pipelines.checkpoints import pick_pipeline
+    pipeline = pick_pipeline(opts.pipeline, models.files, chosen)  # needs a target or not
+    if pipeline == "cvae":  # the HUMANISE baseline on the square around the target
+        from jaxmotion.pipelines import cvae
+        joints, crop = cvae.sample_in_room(room, centre, text, instruction.action, opts,
+                                           models.files, root, aot_dir, versions)
+    elif pipeline == "object-centric":  # sensors around the target
         from jaxmotion.pipelines.object_centric import sample_in_room
 
         joints, crop = sample_in_room(room, centre, chosen, instruction.anchor_first, emb, opts,
-                                      models.objects, root, aot_dir, versions,
+                                      models.files, root, aot_dir, versions,
                                       instruction.action)
+    if pipeline != "affordance":
         aff, excluded, n_cand, n_mot = (np.zeros((k, len(crop[0]), 6), np.float32), (), 0,
-                                        opts.motion_candidates)
+                                        1 if pipeline == "cvae" else opts.motion_candidates)
     else:
         joints, aff, crop, excluded, n_cand, n_mot = _synthesize(
             room, centre, chosen, instruction.anchor_first, emb, opts, models, view, root,

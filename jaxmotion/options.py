@@ -52,8 +52,9 @@ MAX_MOTION_CANDIDATES = 16
 GROUNDINGS = ("auto", "adm", "llm")
 #: The generation pipelines (``pipeline`` option); the first is the default: ``auto`` runs the
 #: object-centric pipeline when the text's target object is found (no teleports, the action
-#: done on the target; docs/results.md) and the affordance pipeline otherwise.
-PIPELINES = ("auto", "affordance", "object-centric")
+#: done on the target; docs/results.md) and the affordance pipeline otherwise. ``cvae`` is the
+#: HUMANISE baseline, run only when asked for (its weights are the user's: none ship).
+PIPELINES = ("auto", "affordance", "object-centric", "cvae")
 
 
 def check_positive_int(name: str, value, lo: int = 1, hi: int | None = None) -> int:
@@ -121,12 +122,17 @@ class GenerateOptions:
       checkpoints: None (shipped), a folder with ``adm.safetensors`` / ``amdm.safetensors``,
         or an ``(adm, amdm)`` pair of workdirs / files.
       pipeline: ``auto`` (the default: object-centric when the target object is known, else
-        affordance), ``affordance`` (ADM → AMDM) or ``object-centric`` (sensors → trajectory
+        affordance), ``affordance`` (ADM → AMDM), ``object-centric`` (sensors → trajectory
         → completion, Cen et al. 2024; needs a target object, grounded as for the affordance
-        pipeline, whose ADM still chooses among same-class candidates).
+        pipeline, whose ADM still chooses among same-class candidates) or ``cvae`` (the
+        HUMANISE cVAE baseline on the crop around the grounded target; ``cvae_checkpoints``).
       object_checkpoints: the object-centric models: None (shipped), a folder with
         ``trajectory.safetensors`` / ``completion.safetensors``, or a ``(trajectory,
         completion)`` pair of workdirs / files.
+      cvae_checkpoints: the HUMANISE cVAE baseline's weights (``pipeline="cvae"``): a
+        ``configs/cvae.py`` training workdir or ``.safetensors``, or a tuple of them
+        (action-specific and / or action-agnostic models); none ship, so the cvae pipeline
+        needs them.
       num_points: surface samples taken from a mesh (None: the loader's default).
       fit: fit SMPL-X bodies (needed to write BVH / GLB); fit_iters: LBFGS iterations.
       aot: keep the traced programs on disk (:mod:`jaxmotion.compiled`).
@@ -145,6 +151,7 @@ class GenerateOptions:
     checkpoints: str | Path | tuple | None = None
     pipeline: str = "auto"
     object_checkpoints: str | Path | tuple | None = None
+    cvae_checkpoints: str | Path | tuple | None = None
     num_points: int | None = None
     fit: bool = True
     fit_iters: int = 100
@@ -178,6 +185,8 @@ class GenerateOptions:
             put("checkpoints", tuple(self.checkpoints))
         if isinstance(self.object_checkpoints, list):
             put("object_checkpoints", tuple(self.object_checkpoints))
+        if isinstance(self.cvae_checkpoints, list):
+            put("cvae_checkpoints", tuple(self.cvae_checkpoints))
         if self.pipeline not in PIPELINES:
             raise GenerateError(f"pipeline must be one of {', '.join(PIPELINES)}, got "
                                 f"{self.pipeline!r}")
@@ -191,7 +200,8 @@ class GenerateOptions:
         if unknown:
             raise GenerateError(f"unknown option(s) {', '.join(unknown)}; valid: "
                                 + ", ".join(sorted(names)))
-        keep_none = {"object_id", "checkpoints", "num_points", "object_checkpoints"}
+        keep_none = {"object_id", "checkpoints", "num_points", "object_checkpoints",
+                     "cvae_checkpoints"}
         return cls(**{k: v for k, v in kwargs.items() if v is not None or k in keep_none})
 
     @classmethod

@@ -56,8 +56,8 @@ class Generation:
         when the target was not known before sampling.
       motion_candidates: motions drawn per sample from its map (the one reaching the target
         kept); 1 when the target was not known.
-      pipeline: the pipeline that sampled the motions, ``affordance`` or ``object-centric``
-        (with ``auto``, the object-centric one when the target object was known).
+      pipeline: the pipeline that sampled the motions, ``affordance``, ``object-centric`` or
+        ``cvae`` (with ``auto``, the object-centric one when the target object was known).
       timings: seconds per stage.
       segments: a story's steps (``generate(plan=...)``): ``{"action", "object", "first",
         "last"}`` per step (frame indices, inclusive); empty for one instruction.

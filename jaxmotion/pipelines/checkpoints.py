@@ -15,7 +15,7 @@ from pathlib import Path
 from jaxmotion.errors import GenerateError
 
 __all__ = ["OBJECT_CENTRIC_FILES", "TEXT_ADM", "resolve_object_checkpoints", "adm_text_tokens", "adm_view", "default_checkpoints", "load_pipeline",
-           "resolve_checkpoints", "text_adm_for", "weights_config"]
+           "pick_pipeline", "pipeline_files", "resolve_checkpoints", "resolve_cvae_checkpoints", "text_adm_for", "weights_config"]
 
 _ASSETS = Path(__file__).resolve().parent.parent / "assets"
 
@@ -125,3 +125,61 @@ def resolve_object_checkpoints(checkpoints) -> tuple[Path, Path]:
         if got != task:
             raise GenerateError(f"{p} is a {got!r} checkpoint, not a {task} one")
     return paths[0], paths[1]
+
+
+def resolve_cvae_checkpoints(checkpoints) -> tuple[Path, ...]:
+    """The cVAE baseline's weights files: a training workdir or ``.safetensors`` of a
+    ``configs/cvae.py`` run, or several (action-specific ones and / or an action-agnostic
+    one, at most one per action). No cVAE ships with jaxmotion: None is refused.
+    :class:`GenerateError` when one is missing, is not a cVAE, or they disagree on the
+    motions' length or the crop's size."""
+    from jaxmotion.models.weights import weights_path
+
+    how = ("train one with python -m jaxmotion.train --config configs/cvae.py workdir=DIR and "
+           "pass it (--cvae DIR; cvae_checkpoints=DIR)")
+    if checkpoints is None or (isinstance(checkpoints, (tuple, list)) and not checkpoints):
+        raise GenerateError(f"the cvae pipeline needs trained weights, and none ship with "
+                            f"jaxmotion: {how}")
+    given = checkpoints if isinstance(checkpoints, (tuple, list)) else (checkpoints,)
+    paths = tuple(weights_path(p) for p in given)
+    seen: dict[str, Path] = {}
+    for p in paths:
+        if not p.is_file():
+            raise GenerateError(f"{p}: no such checkpoint file; {how}")
+        cfg = weights_config(p)
+        if cfg.get("task") != "cvae":
+            raise GenerateError(f"{p} is a {cfg.get('task')!r} checkpoint, not a cvae one")
+        action = cfg.get("action", "")
+        if action in seen:
+            raise GenerateError(f"{seen[action]} and {p} are both cVAEs for "
+                                f"{action or 'any action (action-agnostic)'}; give one")
+        seen[action] = p
+    shapes = {(weights_config(p)["max_frames"], weights_config(p)["crop"]["size"]) for p in paths}
+    if len(shapes) > 1:
+        raise GenerateError(f"the cVAE checkpoints {', '.join(map(str, paths))} differ in "
+                            "max_frames or crop.size; give ones trained alike")
+    return paths
+
+
+def pipeline_files(opts) -> tuple[Path, ...] | None:
+    """The weights files of ``opts.pipeline`` (:class:`~jaxmotion.options.GenerateOptions`)
+    besides the ADM and AMDM: the object-centric models (``auto``, ``object-centric``), the
+    cVAE's (``cvae``), or None (``affordance``)."""
+    if opts.pipeline == "affordance":
+        return None
+    if opts.pipeline == "cvae":
+        return resolve_cvae_checkpoints(opts.cvae_checkpoints)
+    return resolve_object_checkpoints(opts.object_checkpoints)
+
+
+def pick_pipeline(requested: str, files, target) -> str:
+    """The pipeline that samples, once grounding has run: ``cvae`` when asked for; the
+    object-centric one when its ``files`` are there and the target object is known
+    (``target`` not None); else the affordance one. :class:`GenerateError` when
+    ``object-centric`` is asked for and no target is known."""
+    if requested == "object-centric" and target is None:
+        raise GenerateError("the object-centric pipeline needs a target object, and the "
+                            "text names none of this room's: name one, or pass object_id")
+    if requested == "cvae":
+        return "cvae"
+    return "object-centric" if files and target is not None else "affordance"

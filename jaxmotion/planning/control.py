@@ -206,6 +206,9 @@ def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=N
         raise GenerateError("give a plan (a story) or a trajectory (a path to follow), not both")
     if plan is None and trajectory is None and not is_story(text):
         return None
+    if opts.pipeline == "cvae":
+        raise GenerateError("the cvae pipeline samples one instruction in one place; a story or "
+                            "a path to follow needs the other pipelines: leave out pipeline=cvae")
     if opts.samples > 1:
         warnings.warn(f"a story or a followed path is one motion: samples={opts.samples} is "
                       "not used (run again with other seeds for others)", UserWarning,

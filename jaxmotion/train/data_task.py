@@ -86,15 +86,19 @@ class DataTask:
                     encoder, raw["text"], n)
         return out
 
+    def dataset(self, cfg, split: str) -> Dataset:
+        """The ``split`` this task reads (:func:`split_dataset`; a task may narrow it)."""
+        return split_dataset(cfg, split)
+
     def train_batches(self, cfg, start_step: int):
-        ds = split_dataset(cfg, "train")
+        ds = self.dataset(cfg, "train")
         return (self.prepare(cfg, b) for b in ds.iterate(
             cfg.batch_size, cfg.seed, start_step=start_step,
             workers=int(getattr(cfg, "loader_workers", 0))))
 
     def val_batches(self, cfg) -> list[dict]:
         try:
-            ds = split_dataset(cfg, "val")
+            ds = self.dataset(cfg, "val")
         except DatasetError:
             return []
         bs = min(cfg.batch_size, len(ds))

@@ -14,6 +14,8 @@ into model inputs, and computes the loss inside the jitted step:
   ``predicted_fraction > 0`` and a trained ADM (``adm_workdir``), that fraction of
   each batch uses an ADM-sampled map (DDIM, ``adm_sampler_steps``) instead of the
   ground truth, as the paper mixes them 50/50.
+- ``cvae``: the HUMANISE conditional VAE baseline (:class:`jaxmotion.train.cvae_task.CVAETask`;
+  L1 reconstruction, KL and target-centre terms).
 - ``evaluator``: the text–motion evaluator of the Guo et al. 2022 metrics
   (:class:`jaxmotion.eval.evaluator.EvaluatorTask`; contrastive hinge loss).
 
@@ -31,6 +33,7 @@ from flax import nnx
 from jaxmotion.config import config_to_dict
 from jaxmotion.models.frozen import ADMNet, load_adm, load_backbone
 from jaxmotion.models.weights import flatten_state
+from jaxmotion.train.cvae_task import CVAETask
 from jaxmotion.train.data_task import DataTask, dataset_stats
 from jaxmotion.train.evaluator_task import EvaluatorTask
 from jaxmotion.train.object_centric_task import ObjectCentricTask
@@ -362,7 +365,7 @@ class AMDMTask(DataTask):
 
 TASKS = {"segmentation": SegmentationTask, "adm": ADMTask, "amdm": AMDMTask,
          "evaluator": EvaluatorTask, "recognizer": RecognizerTask,
-         "trajectory": ObjectCentricTask, "completion": ObjectCentricTask}
+         "trajectory": ObjectCentricTask, "completion": ObjectCentricTask, "cvae": CVAETask}
 
 
 def get_task(cfg):

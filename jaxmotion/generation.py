@@ -203,9 +203,9 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     elif pipeline == "object-centric":  # sensors around the target
         from jaxmotion.pipelines.object_centric import sample_in_room
 
-        joints, crop = sample_in_room(room, centre, chosen, instruction.anchor_first, emb, opts,
-                                      models.files, root, aot_dir, versions,
-                                      instruction.action)
+        joints, crop, exact = sample_in_room(room, centre, chosen, instruction.anchor_first,
+                                             emb, opts, models.files, root, aot_dir, versions,
+                                             instruction.action)
     if pipeline != "affordance":
         aff, excluded, n_cand, n_mot = (np.zeros((k, len(crop[0]), 6), np.float32), (), 0,
                                         1 if pipeline == "cvae" else opts.motion_candidates)
@@ -215,7 +215,9 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
             (adm_sampler, amdm_sampler), aot_dir, versions)
     lap("sample")
     smplx, err = {}, np.full(k, np.nan, np.float32)
-    if opts.fit:
+    if pipeline == "object-centric":  # sampled as SMPL-X parameters: the joints are theirs
+        smplx, err = exact, np.zeros(k, np.float32)
+    elif opts.fit:
         from jaxmotion.body.fit import fit_bodies
 
         smplx, err = fit_bodies(joints, opts.fit_iters, aot_dir, versions)

@@ -350,6 +350,14 @@ def test_generate_with_the_object_centric_pipeline(runs, tmp_path):
     # the crop is centred on the target: the motions are in the room's frame around it
     target = res.scene.xyz[res.scene.instance == res.target_id]
     assert np.linalg.norm(res.joints[:, :, 0, :2].mean((0, 1)) - target[:, :2].mean(0)) < 3.0
+    # sampled as SMPL-X parameters: those of the motion (scene frame), no fit needed
+    from jaxmotion.geometry.skeleton import smplx_joints
+
+    p = {k: jnp.asarray(v) for k, v in res.smplx.items()}
+    assert p["body_pose"].shape == (2, 120, 21, 3) and p["betas"].shape == (2, 10)
+    again = smplx_joints(p["global_orient"], p["body_pose"], p["transl"], p["betas"][:, None])
+    np.testing.assert_allclose(np.asarray(again), res.joints, atol=2e-4)
+    np.testing.assert_array_equal(res.fit_error, 0.0)
     with pytest.raises(GenerateError, match="no such checkpoint file"):
         generate("demo", "sit on the chair", pipeline="object-centric",
                  object_checkpoints=tmp_path, fit=False)

@@ -35,9 +35,11 @@ from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_r
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
 from jaxmotion.models.object_centric import ACTION_CLASSES, UNKNOWN_ACTION
+from jaxmotion.geometry.rotations import matrix_to_rotation_6d
 from jaxmotion.motion.representation import (
     TRAJECTORY_DIM,
     motion_to_joints,
+    motion_to_smplx,
     trajectory_frames,
     trajectory_velocity,
 )
@@ -268,7 +270,8 @@ class ObjectCentricPipeline:
           :meth:`sample_one`; action: ``[B]`` int indices into ``ACTION_CLASSES`` (None:
           unknown).
         Returns:
-          ``{"joints": [B, T, 22, 3]}`` in the crop frame.
+          ``{"joints": [B, T, 22, 3], "motion": [B, T, 135]}`` (the kept candidates' joints
+          and motion features) in the crop frame.
         """
         from jaxmotion.pipelines.affordance import select_motion
 
@@ -279,17 +282,19 @@ class ObjectCentricPipeline:
             action = jnp.full((b,), UNKNOWN_ACTION, jnp.int32)
 
         def one(k, p, n, t, e, bt, mk, a):
-            return self.sample_one(k, p, n, t, e, bt, mk, trajectory_spec=trajectory,
-                                   completion_spec=completion, keep_trajectory=keep_trajectory,
-                                   action=a, anchor_guidance=anchor_guidance)["joints"]
+            out = self.sample_one(k, p, n, t, e, bt, mk, trajectory_spec=trajectory,
+                                  completion_spec=completion, keep_trajectory=keep_trajectory,
+                                  action=a, anchor_guidance=anchor_guidance)
+            return out["joints"], out["motion"]
 
         per_candidate = jax.vmap(one, in_axes=(0, None, None, None, None, None, None, None))
-        joints = jax.vmap(per_candidate)(keys, points, normals, target, text_emb, betas, mask,
-                                         jnp.asarray(action, jnp.int32))
+        joints, motion = jax.vmap(per_candidate)(keys, points, normals, target, text_emb, betas,
+                                                 mask, jnp.asarray(action, jnp.int32))
         if m == 1:
-            return {"joints": joints[:, 0]}
-        return {"joints": select_motion(joints, points, target, mask, anchor_first,
-                                        brisk_pelvis_speed=BRISK_PELVIS_SPEED)}
+            return {"joints": joints[:, 0], "motion": motion[:, 0]}
+        best = select_motion(joints, points, target, mask, anchor_first,
+                             brisk_pelvis_speed=BRISK_PELVIS_SPEED, return_index=True)
+        return {"joints": joints[jnp.arange(b), best], "motion": motion[jnp.arange(b), best]}
 
 
 @functools.lru_cache(maxsize=4)
@@ -326,7 +331,10 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
       aot_dir, versions: the compiled-program cache (:func:`jaxmotion.compiled.cached_call`).
       action: the action the instruction asks for (``Instruction.action``; None: unknown).
     Returns:
-      ``(joints [K, T, 22, 3], (crop point indices, rotation, shift))``.
+      ``(joints [K, T, 22, 3], (crop point indices, rotation, shift), smplx)``: ``smplx`` the
+      SMPL-X parameters the motions were sampled as (``global_orient``, ``body_pose``,
+      ``transl``, ``betas``, scene frame; the joints are their forward kinematics, so no fit
+      is needed).
     """
     import numpy as np
 
@@ -364,7 +372,16 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
             main(kd), p, n, t, e, b, m, trajectory=stage, completion=stage,
             motion_candidates=n_mot, anchor_first=f, action=a)
 
-    res = cached_call(aot_dir, "sample-object-centric",
-                      digest(versions, stage, n_mot, Path(files[0]), Path(files[1])), build, args)
-    joints = (np.asarray(jax.device_get(res["joints"])) @ rot + shift).astype(np.float32)
-    return joints, (pick, rot, shift)
+    res = jax.device_get(cached_call(aot_dir, "sample-object-centric",
+                                     digest(versions, stage, n_mot, Path(files[0]),
+                                            Path(files[1]), "joints+motion"), build, args))
+    joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
+    # the features in the scene frame: x_scene = x_crop @ rot + shift, orientations turned
+    motion = np.array(res["motion"], np.float32)
+    motion[..., :3] = motion[..., :3] @ rot + shift
+    turned = np.asarray(rot.T, np.float32) @ np.asarray(trajectory_frames(motion)[1])
+    motion[..., 3:TRAJECTORY_DIM] = np.asarray(matrix_to_rotation_6d(jnp.asarray(turned)))
+    betas = np.zeros((k, 10), np.float32)
+    smplx = {n: np.asarray(v, np.float32) for n, v in motion_to_smplx(motion, betas).items()}
+    smplx["betas"] = betas
+    return joints, (pick, rot, shift), smplx

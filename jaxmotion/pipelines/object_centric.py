@@ -33,9 +33,9 @@ from flax import nnx
 from jaxmotion.constants import SCENE_FPS
 from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
 from jaxmotion.diffusion.samplers import SamplerSpec
+from jaxmotion.geometry.rotations import matrix_to_rotation_6d
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
 from jaxmotion.models.object_centric import ACTION_CLASSES, UNKNOWN_ACTION
-from jaxmotion.geometry.rotations import matrix_to_rotation_6d
 from jaxmotion.motion.representation import (
     TRAJECTORY_DIM,
     motion_to_joints,

@@ -242,7 +242,7 @@ def test_standing_height_matches_a_standing_skeleton():
         assert 0.8 < got < 1.1
 
 
-def test_walk_offset_brings_a_far_walk_to_the_target_and_leaves_a_near_one():
+def test_walk_offset_brings_a_walk_to_its_target_or_out_of_it_and_leaves_a_near_one():
     pts, _, _ = _chair()
     xy, target = jnp.asarray(pts[:, :2]), jnp.ones(len(pts), bool)
     for start in ([-1.0, 1.25], [1.25, 3.0], [2.5, -0.5]):
@@ -255,6 +255,14 @@ def test_walk_offset_brings_a_far_walk_to_the_target_and_leaves_a_near_one():
                                       0.0)
     np.testing.assert_array_equal(
         np.asarray(A.walk_offset(jnp.asarray([5.0, 5.0]), xy, jnp.zeros(len(pts), bool))), 0.0)
+    # a walk that ends over its target (or touching it) is moved out, to WALK_STOP from it
+    for inside in ([1.2, 1.3], [1.45, 1.05], [1.25, 1.25], [0.95, 1.2]):
+        p = np.asarray(inside, np.float32)
+        goal = p + np.asarray(A.walk_offset(jnp.asarray(p), xy, target))
+        gaps = np.linalg.norm(pts[:, :2] - goal, axis=-1)
+        assert gaps.min() == pytest.approx(A.WALK_STOP, abs=0.02), (inside, goal)
+        seat = (goal >= 1.0) & (goal <= 1.5)
+        assert not seat.all(), goal  # off the seat's footprint
 
 
 def test_lying_rotation_lies_face_up_along_the_long_side():

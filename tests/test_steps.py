@@ -36,6 +36,19 @@ def test_split_steps_cuts_at_each_action():
     assert split_steps("") == [] and split_steps("???") == []
 
 
+def test_a_walk_to_several_places_is_a_step_per_place(room):
+    assert split_steps("walk to the table and then to the fridge") == [
+        ("walk", "walk to the table"), ("walk", "walk to the fridge")]
+    assert split_steps("go to the table then to the door and then to the fridge") == [
+        ("walk", "go to the table"), ("walk", "walk to the door"), ("walk", "walk to the fridge")]
+    assert is_story("walk to the table and then to the fridge")
+    # a relation is not a second place
+    assert split_steps("walk to the chair next to the table") == [
+        ("walk", "walk to the chair next to the table")]
+    assert not is_story("walk to the chair next to the table")
+    assert plan(room, "walk to the table and then to the fridge")[0] == [("walk", 3), ("walk", 9)]
+
+
 def test_one_instruction_is_not_a_story():
     for text in ("sit on the chair next to the table", "walk to the bed, then lie down",
                  "a person walks over and sits down", "Go ahead and have a seat on the stool",

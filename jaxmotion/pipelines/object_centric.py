@@ -374,7 +374,7 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
 
     res = jax.device_get(cached_call(aot_dir, "sample-object-centric",
                                      digest(versions, stage, n_mot, Path(files[0]),
-                                            Path(files[1]), "joints+motion"), build, args))
+                                            Path(files[1])), build, args))
     joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
     # the features in the scene frame: x_scene = x_crop @ rot + shift, orientations turned
     motion = np.array(res["motion"], np.float32)

@@ -31,9 +31,27 @@ _BACK = ("it", "there", "here", "that", "this", "them")
 _JOINERS = ("and", "then", "after", "that", "finally", "next", "afterwards", "later", "to")
 
 
+def _destinations(words) -> list[list[str]]:
+    """A walk's clause cut before each further destination: "walk to the table and then to
+    the fridge" -> "walk to the table", "walk to the fridge" ("then to", "and to", "and then
+    to" after a first "to"; "next to", "close to" are relations and do not cut)."""
+    cuts = [i for i in range(2, len(words)) if words[i] == "to" and words[i - 1] in (
+        "then", "and") and "to" in words[:i - 1]]
+    if not cuts:
+        return [words]
+    out, start = [], 0
+    for i in cuts:
+        part = words[start:i]
+        while len(part) > 1 and part[-1] in _JOINERS:
+            part.pop()
+        out.append(part)
+        start = i
+    return [out[0]] + [["walk", *p] for p in out[1:]] + [["walk", *words[start:]]]
+
+
 def split_steps(text) -> list[tuple[str, str]]:
     """``(action, clause)`` per step of ``text``, in order (never raises; ``[]`` when no
-    action is read)."""
+    action is read). A walk to several places is one step per place."""
     from jaxmotion.grounding.phrasing import read_phrasing, tokenize
 
     r = read_phrasing(text)
@@ -44,17 +62,22 @@ def split_steps(text) -> list[tuple[str, str]]:
         words = [w for w in raw[start:end] if w != "|"]
         while len(words) > 1 and words[-1] in _JOINERS:
             words.pop()
-        out.append((action, " ".join(words)))
+        parts = _destinations(words) if action == "walk" else [words]
+        out.extend((action, " ".join(p)) for p in parts)
     return out
 
 
 def is_story(text) -> bool:
-    """Whether ``text`` asks for more than one motion (and so is told as a story)."""
+    """Whether ``text`` asks for more than one motion (and so is told as a story): several
+    actions on several objects, or a walk to several places."""
     from jaxmotion.grounding.phrasing import read_phrasing
 
     try:
         r = read_phrasing(text)  # split_steps makes one step of each of r.steps
-        return bool(r.several) and len(r.steps) > 1
+        if bool(r.several) and len(r.steps) > 1:
+            return True
+        return sum(a == "walk" for a, _ in split_steps(text)) > sum(
+            a == "walk" for a, _ in r.steps)
     except Exception:  # noqa: BLE001 - never stop a generate over this question
         return False
 

@@ -137,9 +137,6 @@ def read_plan(plan, scene) -> tuple[Step, ...]:
                                 f"{'on' if step.action != 'stand_up' else 'from'} a {cat} "
                                 f"(object {oid}); that takes {', '.join(_TAKES[step.action])}")
         steps.append(Step(step.action, oid))
-    if steps[0].action == "walk":
-        raise GenerateError("step 1: a story starts on an object (stand_up, sit or lie): the "
-                            "walk needs a place to start from")
     out = [steps[0]]
     for i, (a, b) in enumerate(itertools.pairwise(steps), 2):
         seated = a.action in ("sit", "lie")
@@ -346,7 +343,8 @@ class Teller:
                               "last": len(self.motion) - 1})
 
     def on_object(self, action, obj):
-        """sit / stand_up / lie: one window in the crop around the object."""
+        """sit / stand_up / lie (or a first walk, from where the model starts it): one window
+        in the crop around the object."""
         from jaxmotion.grounding.region import centre_on_object
         from jaxmotion.pipelines.object_centric import action_index
 
@@ -478,7 +476,10 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
                   flush=True)
         try:
             if step.action == "walk":
-                teller.walk_to(obj, grid)
+                if teller.motion is None:  # a story that starts walking: one walk clip to it
+                    teller.on_object("walk", obj)
+                else:
+                    teller.walk_to(obj, grid)
                 continue
             if step.action in ("sit", "lie") and teller.motion is not None:
                 pts = scene.xyz[scene.instance == step.object, :2]

@@ -66,18 +66,6 @@ def choose_plan(scene, last: str = "sit"):
             {"action": last, "object": b["id"]}], (a, b, c)
 
 
-def furniture_frames(joints, scene, allowed, margin=0.05) -> float:
-    """Fraction of frames with some joint inside the (shrunk) box of an object not in
-    ``allowed`` (floors, walls, doors and windows aside)."""
-    inside = np.zeros(len(joints), bool)
-    for o in scene.objects:
-        if o["id"] in allowed or o["category"] in SKIP:
-            continue
-        lo, hi = np.asarray(o["bbox_min"]) + margin, np.asarray(o["bbox_max"]) - margin
-        inside |= np.all((joints > lo) & (joints < hi), axis=-1).any(-1)
-    return float(inside.mean())
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--data", required=True, help="a jaxmotion synth dataset (its scenes/)")
@@ -93,6 +81,7 @@ def main(argv=None) -> int:
     import jax.numpy as jnp
 
     from jaxmotion.eval.action_judge import judge_actions
+    from jaxmotion.eval.furniture import furniture_frames
     from jaxmotion.eval.plausibility import plausibility
     from jaxmotion.planning.story import tell
     from jaxmotion.scene.demo import load_scene_arg
@@ -137,7 +126,8 @@ def main(argv=None) -> int:
                "pelvis_speed_max": float(pl["pelvis_speed_max"]),
                "joint_speed_max": float(pl["joint_speed_max"]),
                "skating": float(pl["skate_ratio"]),
-               "furniture": furniture_frames(j, scene, {a["id"], b["id"], c["id"]}),
+               "furniture": float(furniture_frames(j, scene.objects,
+                                                   (a["id"], b["id"], c["id"]))),
                "seconds": times[-1]}
         row["success"] = (row["start_seated"] and row["end_seated"] and not row["teleport"]
                           and row["furniture"] <= 0.01)

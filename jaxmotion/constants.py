@@ -8,12 +8,14 @@
 - :data:`TEXT_ENCODER`: the sentence encoder every model here reads (all-MiniLM-L6-v2).
 - :data:`FOOT_JOINTS`: the foot joints of foot skating and foot contact (left / right ankle,
   left / right foot).
+- :data:`PASSABLE`: object categories a body may pass through or touch (openings, things on
+  walls, floor covers): never obstacles for paths or for choosing among candidate motions.
 """
 
 from __future__ import annotations
 
-__all__ = ["AFFORDANCE_JOINTS", "AFFORDANCE_SIGMA", "FOOT_JOINTS", "NUM_JOINTS", "SCENE_FPS",
-           "TEXT_ENCODER"]
+__all__ = ["AFFORDANCE_JOINTS", "AFFORDANCE_SIGMA", "FOOT_JOINTS", "NUM_JOINTS", "PASSABLE",
+           "SCENE_FPS", "TEXT_ENCODER"]
 
 SCENE_FPS: float = 30.0
 NUM_JOINTS: int = 22
@@ -21,3 +23,4 @@ AFFORDANCE_JOINTS: tuple[int, ...] = (0, 10, 11, 12, 20, 21)
 AFFORDANCE_SIGMA: float = 0.8
 TEXT_ENCODER: str = "minilm"
 FOOT_JOINTS: tuple[int, ...] = (7, 8, 10, 11)
+PASSABLE: tuple[str, ...] = ("door", "window", "picture", "curtain", "rug")

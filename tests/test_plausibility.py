@@ -284,3 +284,31 @@ def test_select_motion_prefers_plausible_then_unhurried_then_closest():
     np.testing.assert_array_equal(pick(cands, brisk_pelvis_speed=2.0), far_slow)
     np.testing.assert_array_equal(pick(cands[:, :2], brisk_pelvis_speed=2.0), near_fast)
     np.testing.assert_array_equal(pick(cands[:, :1], brisk_pelvis_speed=2.0), near_jump)
+
+
+def test_furniture_frames_counts_frames_with_a_joint_inside_a_box():
+    """A body walking through a table's box (shrunk 5 cm) for a known stretch; the target
+    excluded, passable objects and padded frames ignored; checked against a frame loop."""
+    from jaxmotion.eval.furniture import furniture_frames
+
+    t = 40
+    joints = np.zeros((t, 22, 3))
+    joints[:, :, 0] = np.linspace(0.0, 4.0, t)[:, None]  # along x, 0.1 m per frame
+    joints[:, :, 1] = 0.5
+    joints[:, :, 2] = np.linspace(0.1, 1.6, 22)[None]
+    table = {"id": 3, "category": "table", "bbox_min": [1.0, 0.0, 0.0],
+             "bbox_max": [2.0, 1.0, 0.75]}
+    door = {"id": 0, "category": "door", "bbox_min": [-1, -1, 0], "bbox_max": [5, 5, 2]}
+    thin = {"id": 5, "category": "picture", "bbox_min": [3, 0, 0], "bbox_max": [3.05, 1, 2]}
+    x = joints[:, 0, 0]
+    want = np.mean((x > 1.05) & (x < 1.95))
+    got = furniture_frames(joints, [table, door, thin])
+    assert got == pytest.approx(want) and 0.2 < got < 0.25
+    assert furniture_frames(joints, [table], exclude=[3]) == 0.0
+    mask = np.arange(t) < 20  # frames 0-19: x up to 1.95
+    assert furniture_frames(joints, [table], mask=mask) == pytest.approx(
+        np.mean(((x > 1.05) & (x < 1.95))[:20]))
+    both = furniture_frames(np.stack([joints, joints + [0, 5, 0]]), [table])
+    np.testing.assert_allclose(both, [want, 0.0])
+    with pytest.raises(ValueError, match="joints must be"):
+        furniture_frames(joints[0], [table])

@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jnp
 from flax import nnx
 
-from jaxmotion.constants import SCENE_FPS
+from jaxmotion.constants import PASSABLE, SCENE_FPS
 from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.rotations import matrix_to_rotation_6d
@@ -50,6 +50,7 @@ __all__ = [
     "ObjectCentricPipeline",
     "action_index",
     "crop_sensors",
+    "furniture_mask",
     "load_object_pipeline",
     "sample_in_room",
     "trajectory_sensors",
@@ -257,7 +258,7 @@ class ObjectCentricPipeline:
                trajectory: SamplerSpec = DEFAULT_SPEC, completion: SamplerSpec = DEFAULT_SPEC,
                motion_candidates: int = 1, anchor_first=None,
                keep_trajectory: bool = True, action=None,
-               anchor_guidance: float = 1.0) -> dict:
+               anchor_guidance: float = 1.0, avoid=None) -> dict:
         """Motions for a batch of crops, the best of ``motion_candidates`` each.
 
         Args:
@@ -268,7 +269,9 @@ class ObjectCentricPipeline:
           candidates: never a teleporting one while another is smooth, else the closest to
           the target at the anchor frame); keep_trajectory, anchor_guidance: as
           :meth:`sample_one`; action: ``[B]`` int indices into ``ACTION_CLASSES`` (None:
-          unknown).
+          unknown); avoid: ``[B, N]`` bool or None, the points a body must keep out of
+          (furniture): among the plausible candidates, those touching them in the fewest
+          frames compete.
         Returns:
           ``{"joints": [B, T, 22, 3], "motion": [B, T, 135]}`` (the kept candidates' joints
           and motion features) in the crop frame.
@@ -293,8 +296,22 @@ class ObjectCentricPipeline:
         if m == 1:
             return {"joints": joints[:, 0], "motion": motion[:, 0]}
         best = select_motion(joints, points, target, mask, anchor_first,
-                             brisk_pelvis_speed=BRISK_PELVIS_SPEED, return_index=True)
+                             brisk_pelvis_speed=BRISK_PELVIS_SPEED, avoid=avoid,
+                             return_index=True)
         return {"joints": joints[jnp.arange(b), best], "motion": motion[jnp.arange(b), best]}
+
+
+def furniture_mask(points, instance, objects, target_mask, action=None):
+    """The crop points ``[N]`` a body keeps out of, for choosing among candidate motions: the
+    points above 0.1 m of the room's objects (``objects``: object-table rows; ``instance
+    [N]`` the points' ids) that are not :data:`~jaxmotion.constants.PASSABLE`, the target's
+    (``target_mask [N]``) aside unless the ``action`` is a walk (which stops in front of it)."""
+    import numpy as np
+
+    solid = [o["id"] for o in objects if o["category"] not in PASSABLE]
+    keep_target = action == "walk"
+    return (np.isin(instance, solid) & (np.asarray(points)[:, 2] > 0.1)
+            & (~np.asarray(target_mask, bool) | keep_target))
 
 
 @functools.lru_cache(maxsize=4)
@@ -358,19 +375,20 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     k = opts.samples
     tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))
     normals = (np.asarray(room.normal[pick], np.float32) @ rot.T).astype(np.float32)
+    avoid = furniture_mask(pts, room.instance[pick], room.objects, on_target, action)
     args = (np.asarray(jax.random.key_data(root)), tile(pts), tile(normals), tile(on_target),
             tile(np.asarray(pooled_text(text_emb), np.float32)[0]),
             np.zeros((k, 10), np.float32), np.ones((k, frames), bool), np.full(k, anchor_first),
-            np.full(k, action_index(action), np.int32))
+            np.full(k, action_index(action), np.int32), tile(avoid))
     stage = SamplerSpec("ddim", opts.steps, guidance=opts.guidance[1])
     n_mot = opts.motion_candidates
 
     def build():
         pipe = load_object_pipeline(str(files[0]), str(files[1]))
         main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]
-        return lambda kd, p, n, t, e, b, m, f, a: pipe.sample(
+        return lambda kd, p, n, t, e, b, m, f, a, av: pipe.sample(
             main(kd), p, n, t, e, b, m, trajectory=stage, completion=stage,
-            motion_candidates=n_mot, anchor_first=f, action=a)
+            motion_candidates=n_mot, anchor_first=f, action=a, avoid=av)
 
     res = jax.device_get(cached_call(aot_dir, "sample-object-centric",
                                      digest(versions, stage, n_mot, Path(files[0]),

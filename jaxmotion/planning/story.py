@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmotion.constants import PASSABLE
 from jaxmotion.errors import GenerateError
 from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
@@ -61,7 +62,6 @@ WALK_REACH = (0.3, 0.6)
 WALK_WIDER = (1.0, 1.5)
 ACTIONS = ("walk", "sit", "stand_up", "lie")
 #: Object categories a body may touch on its way (not furniture to keep out of).
-PASSABLE = ("door", "window", "picture", "curtain", "rug")
 _STAND_UP = 2  # its index in jaxmotion.models.object_centric.ACTION_CLASSES
 _TAKES = {"sit": SEAT_CATEGORIES, "stand_up": SEAT_CATEGORIES, "lie": LIE_CATEGORIES}
 _TEXT = {"walk": "walk to the {}", "sit": "sit on the {}", "stand_up": "stand up from the {}",

@@ -1,0 +1,55 @@
+"""Bodies inside furniture: the share of frames in which some joint lies inside the box of an
+object of the room, as a person looking at the motion sees it (a walk through a table, knees
+through a desk, a hand through a cabinet).
+
+The body measure of non-collision (:mod:`jaxmotion.eval.body_metrics`) reads the scene's
+points and normals, and misses a body inside an object's empty volume (the legroom under a
+table top, between its legs). Here each object is its axis-aligned box (the object table's
+``bbox_min`` / ``bbox_max``, z-up, metres) shrunk by ``margin`` on every side, so that a
+joint brushing a surface does not count. Objects a body may pass (doors, windows, pictures,
+curtains, rugs: :data:`jaxmotion.constants.PASSABLE`) and floors, walls and ceilings are left
+out, and so are the ids in ``exclude`` (the seat a sit ends on). Host-side numpy.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jaxmotion.constants import PASSABLE
+
+__all__ = ["IGNORED", "furniture_frames"]
+
+#: Categories never counted: passable objects and the room's own surfaces.
+IGNORED = (*PASSABLE, "floor", "wall", "ceiling")
+
+
+def furniture_frames(joints, objects, exclude=(), mask=None, margin: float = 0.05) -> np.ndarray:
+    """The share of valid frames in which a joint is inside some object's shrunk box.
+
+    Args:
+      joints: ``[..., T, J, 3]`` in the room's frame (metres, z-up).
+      objects: the room's object table (dicts with ``id``, ``category``, ``bbox_min``,
+        ``bbox_max``).
+      exclude: object ids not counted (e.g. the target a sit or lie ends on).
+      mask: ``[..., T]`` bool, True = valid frame (default all).
+      margin: metres each box is shrunk by on every side.
+    Returns:
+      ``[...]`` fractions in [0, 1] (0 for a motion with no valid frame).
+    """
+    joints = np.asarray(joints, np.float64)
+    if joints.ndim < 3 or joints.shape[-1] != 3:
+        raise ValueError(f"joints must be [..., T, J, 3], got {joints.shape}")
+    mask = (np.ones(joints.shape[:-2], bool) if mask is None
+            else np.broadcast_to(np.asarray(mask, bool), joints.shape[:-2]))
+    skip = {int(i) for i in exclude}
+    inside = np.zeros(joints.shape[:-2], bool)
+    for o in objects:
+        if int(o["id"]) in skip or o["category"] in IGNORED:
+            continue
+        lo = np.asarray(o["bbox_min"], np.float64) + margin
+        hi = np.asarray(o["bbox_max"], np.float64) - margin
+        if np.any(lo >= hi):  # thinner than twice the margin: nothing inside counts
+            continue
+        inside |= np.all((joints > lo) & (joints < hi), axis=-1).any(-1)
+    n = mask.sum(-1)
+    return np.where(n > 0, (inside & mask).sum(-1) / np.maximum(n, 1), 0.0)

@@ -192,3 +192,49 @@ def test_runner_with_an_evaluator_adds_text_motion_columns(tiny_runs, tmp_path):
     assert "r_precision_top3" in rep["real"] and rep["settings"]["evaluator"]
     md = format_markdown(rep)
     assert "FID ↓" in md and "| dataset motions |" in md
+
+
+def test_runner_with_a_recognizer_adds_its_feature_columns(tiny_runs, tmp_path, capsys):
+    """--recognizer: action accuracy and FID / diversity / multimodality on the recognizer's
+    features, per replication and summarised in results.json, the dataset's diversity in its
+    "real" row, and the columns in the printed table."""
+    from jaxmotion.cli import main
+    from jaxmotion.config import load_config
+    from jaxmotion.eval.recognizer import load_recognizer
+    from jaxmotion.train import train
+    from jaxmotion.train.tasks import get_task
+
+    root, out = tiny_runs
+    cfg = load_config("configs/recognizer.py", [f"data_dir={out['data']}", "preset=tiny",
+                                                 "steps=5", "eval_every=0", "ckpt_every=5",
+                                                 f"workdir={tmp_path / 'rec'}"])
+    train(cfg, get_task(cfg))
+    args = ["eval", "--data", str(out["data"]), "--model",
+            f"two={root / 'adm'},{root / 'amdm'},ddim2", "--cases", "4", "--samples", "2",
+            "--replications", "2", "--batch-size", "8", "--joints-only",
+            "--recognizer", str(tmp_path / "rec"), "--out", str(tmp_path / "out")]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    rep = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert rep["settings"]["recognizer"] == load_recognizer(tmp_path / "rec").describe()
+    m = rep["models"]["two"]
+    for key in ("rec_fid", "rec_diversity", "rec_multimodality", "action_recognized"):
+        assert m["summary"][key]["n"] == 2, key
+        assert all(np.isfinite(r[key]) for r in m["replications"]), key
+    assert m["summary"]["rec_fid"]["mean"] > 0 and m["summary"]["rec_diversity"]["mean"] > 0
+    assert m["summary"]["rec_multimodality"]["mean"] > 0  # two different samples per case
+    real = rep["real"]
+    assert set(real) == {"rec_diversity"} and real["rec_diversity"] > 0  # no evaluator given
+    md = (tmp_path / "out" / "results.md").read_text()
+    assert md == format_markdown(rep) and md in printed
+    table = md[md.index("**Plausibility and action**"):].splitlines()
+    head = next(x for x in table if x.startswith("| method"))
+    cols = [c.strip() for c in head.strip("|").split("|")]
+    assert cols[-3:] == ["FID (rec.) ↓", "diversity (rec.) →", "multimodality (rec.) ↑"]
+    data = [c.strip() for c in next(x for x in table if x.startswith("| dataset motions"))
+            .strip("|").split("|")]
+    assert data[-3:] == ["–", f"{real['rec_diversity']:.3f}", "–"]
+    two = [c.strip() for c in next(x for x in table if x.startswith("| two |"))
+           .strip("|").split("|")]
+    assert two[-3] == "{mean:.3f} ± {ci95:.3f}".format(**m["summary"]["rec_fid"])
+    assert "rec_fid" not in (tmp_path / "out" / "cases.jsonl").read_text()  # set-level numbers

@@ -515,7 +515,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--evaluator", default=None, help="text-motion evaluator workdir (optional)")
     p.add_argument("--recognizer", default=None,
                    help="action recognizer workdir (python -m jaxmotion.train --config "
-                   "configs/recognizer.py); adds the recognizer's action accuracy (optional)")
+                   "configs/recognizer.py); adds the recognizer's action accuracy and FID / "
+                   "diversity / multimodality on its features (optional)")
     p.add_argument("--joints-only", action="store_true",
                    help="fast joint-sphere body instead of fitted SMPL-X meshes")
     p.add_argument("--vertex-stride", type=int, default=4,

@@ -164,13 +164,55 @@ def test_runner_over_tiny_runs(tiny_runs, tmp_path, body):
         np.testing.assert_allclose(means, [x[k] for x in m["replications"]], rtol=1e-6)
 
 
-def test_same_seed_same_numbers(tiny_runs):
+def test_same_seed_same_numbers_and_the_recognizer_columns(tiny_runs, tmp_path):
+    """Same seed, same numbers. With a recognizer (an untrained tiny one: the wiring, not its
+    skill): action accuracy and FID / diversity / multimodality on its features per
+    replication and in the summary of results.json, the dataset's diversity in the "real" row,
+    and three columns in the table."""
+    from flax import nnx
+
+    from jaxmotion.eval.recognizer import RECOGNIZER_VERSION, Recognizer
+    from jaxmotion.models.recognizer import ActionRecognizer, RecognizerConfig
+
     root, out = tiny_runs
+    rec = Recognizer(ActionRecognizer(RecognizerConfig.preset("tiny"), rngs=nnx.Rngs(0)),
+                     {"recognizer_version": RECOGNIZER_VERSION, "fps": 30})
     spec = [ModelSpec("two", str(root / "adm"), str(root / "amdm"), "ddim", 2)]
     kw = dict(num_cases=2, samples=2, replications=1, body=False, batch_size=4, progress=False)
-    a = evaluate(out["data"], spec, **kw)["models"]["two"]["replications"]
-    b = evaluate(out["data"], spec, **kw)["models"]["two"]["replications"]
-    assert a == b
+    a = evaluate(out["data"], spec, **kw, recognizer=rec)
+    plain = evaluate(out["data"], spec, **kw)
+    b = plain["models"]["two"]["replications"]
+    rec_keys = {"rec_fid", "rec_diversity", "rec_multimodality", "action_recognized"}
+    assert [{k: v for k, v in x.items() if k not in rec_keys}
+            for x in a["models"]["two"]["replications"]] == b
+    write_report(a, tmp_path)
+    rep = json.loads((tmp_path / "results.json").read_text())
+    assert rep["settings"]["recognizer"] == rec.describe()
+    m = rep["models"]["two"]
+    for key in rec_keys:
+        assert m["summary"][key]["n"] == 1 and np.isfinite(m["replications"][0][key]), key
+    assert m["summary"]["rec_fid"]["mean"] > 0
+    # 2 cases x 2 samples: Guo et al.'s independent pair draws (as Diversity / MultiModality)
+    # give 0 when they coincide, so these can be 0 here
+    assert m["summary"]["rec_diversity"]["mean"] >= 0
+    assert m["summary"]["rec_multimodality"]["mean"] >= 0
+    real = rep["real"]
+    assert set(real) == {"rec_diversity"} and real["rec_diversity"] >= 0  # no evaluator given
+    md = (tmp_path / "results.md").read_text()
+    assert md == format_markdown(rep)
+    table = md[md.index("**Plausibility and action**"):md.index("**Affordance")].splitlines()
+    cells = {x.split("|")[1].strip(): [c.strip() for c in x.strip("|").split("|")]
+             for x in table if x.startswith("| ")}
+    assert cells["method"][-3:] == ["FID (rec.) ↓", "diversity (rec.) →",
+                                    "multimodality (rec.) ↑"]
+    assert cells["dataset motions"][-3:] == ["–", f"{real['rec_diversity']:.3f}", "–"]
+    assert cells["two"][-3] == "{mean:.3f} ± {ci95:.3f}".format(**m["summary"]["rec_fid"])
+    assert "rec_fid" not in (tmp_path / "cases.jsonl").read_text()  # set-level numbers
+    # bodies inside furniture: a per-case column, the dataset's motions as the reference
+    assert "in furniture (%) ↓" in cells["method"]
+    assert 0.0 <= m["summary"]["in_furniture"]["mean"] <= 1.0
+    assert 0.0 <= rep["ground_truth"]["in_furniture"] <= 1.0
+    assert "FID (rec.)" not in format_markdown(plain) and "real" not in plain
 
 
 def test_runner_with_an_evaluator_adds_text_motion_columns(tiny_runs, tmp_path):
@@ -192,3 +234,4 @@ def test_runner_with_an_evaluator_adds_text_motion_columns(tiny_runs, tmp_path):
     assert "r_precision_top3" in rep["real"] and rep["settings"]["evaluator"]
     md = format_markdown(rep)
     assert "FID ↓" in md and "| dataset motions |" in md
+

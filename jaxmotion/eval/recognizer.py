@@ -15,6 +15,14 @@ then score motions::
 The accuracy of the same recognizer on the dataset's own test motions is the ceiling row of
 the table: a generated motion cannot be recognised better than real ones.
 
+The paper's Table 1 also gives FID, diversity and multimodality on the recognizer's features
+(not on a text–motion evaluator's): :meth:`Recognizer.features` (host, chunked) or the pure
+:func:`recognizer_features` give the penultimate-layer vector ``[B, hidden]`` of each motion,
+and :func:`recognizer_scores` the three numbers of generated motions against real ones, with
+the arithmetic of :mod:`jaxmotion.eval.text_motion_metrics`::
+
+    scores = recognizer_scores(rec, gt_joints, gt_mask, gen_joints, gen_mask, rng=0)
+
 Versioning: ``model.safetensors`` carries ``recognizer_version`` (:data:`RECOGNIZER_VERSION`,
 bumped whenever features, architecture, loss or labels change; loading refuses other
 versions), the sha256 of the training data's ``manifest.json`` and the data's frame rate;
@@ -35,6 +43,7 @@ import numpy as np
 from flax import nnx
 
 from jaxmotion.eval._common import motion_batch, run_in_chunks
+from jaxmotion.eval.text_motion_metrics import diversity, fid, multimodality
 from jaxmotion.models.recognizer import (
     ACTIONS,
     RECOGNIZER_VERSION,
@@ -43,7 +52,7 @@ from jaxmotion.models.recognizer import (
 )
 
 __all__ = ["ACTIONS", "RECOGNIZER_VERSION", "Recognizer", "action_accuracy", "action_ids",
-           "load_recognizer"]
+           "load_recognizer", "recognizer_features", "recognizer_scores"]
 
 RETRAIN = ("python -m jaxmotion.train --config configs/recognizer.py data_dir=DATA "
            "workdir=runs/recognizer")
@@ -70,6 +79,18 @@ def action_ids(actions) -> np.ndarray:
     return np.asarray(out, np.int32)
 
 
+def recognizer_features(model: ActionRecognizer, joints: jax.Array,
+                        mask: jax.Array) -> jax.Array:
+    """The recognizer's penultimate-layer (pre-logit) features of each motion, in eval mode.
+
+    Pure and jit-able (``nnx.jit(recognizer_features)``, or through ``nnx.split`` /
+    ``nnx.merge`` as :class:`Recognizer` does). ``joints [B, T, 22, 3]`` (z-up, metres, the
+    training data's frame rate) and a prefix ``mask [B, T]`` -> ``[B, hidden]`` float32; the
+    values of padded frames, the padded length, a shift and a turn about z change nothing.
+    """
+    return model.features(joints, mask, deterministic=True)
+
+
 class Recognizer:
     """A trained, frozen action recognizer (made by :func:`load_recognizer`).
 
@@ -90,7 +111,11 @@ class Recognizer:
         def logits(state, joints, mask):
             return nnx.merge(graphdef, state)(joints, mask, deterministic=True)
 
-        self._logits = logits
+        @jax.jit
+        def features(state, joints, mask):
+            return recognizer_features(nnx.merge(graphdef, state), joints, mask)
+
+        self._logits, self._features = logits, features
 
     @property
     def version(self) -> str:
@@ -111,6 +136,17 @@ class Recognizer:
         frame valid) -> ``[B, 4]`` logits in the order of :data:`ACTIONS`."""
         joints, mask = motion_batch(joints, mask)
         return run_in_chunks(self._logits, self._state, (joints, mask), self.batch_size)
+
+    def features(self, joints, mask=None) -> np.ndarray:
+        """``joints [B, T, 22, 3]`` and a prefix ``mask [B, T]`` (None: every frame valid) ->
+        ``[B, hidden]`` float32 penultimate-layer features (:func:`recognizer_features`)."""
+        joints, mask = motion_batch(joints, mask)
+        return run_in_chunks(self._features, self._state, (joints, mask), self.batch_size)
+
+    @property
+    def dim(self) -> int:
+        """Width of :meth:`features`."""
+        return self.model.cfg.hidden
 
     def predict(self, joints, mask=None) -> np.ndarray:
         """The recognised action of each motion: ``[B]`` int32 indices into :data:`ACTIONS`."""
@@ -168,3 +204,54 @@ def action_accuracy(recognizer: Recognizer, joints, mask, actions: Sequence) -> 
     if len(want) != n:
         raise ValueError(f"need one action per motion: {len(want)} actions for {n} motions")
     return float(np.mean(recognizer.predict(joints, mask) == want))
+
+
+def recognizer_scores(recognizer: Recognizer, gt_joints, gt_mask, gen_joints, gen_mask, rng=0,
+                      *, diversity_pairs: int = 300, mm_pairs: int = 10) -> dict:
+    """FID, diversity and multimodality on the recognizer's features (the object-centric
+    paper's Table 1 columns), with the arithmetic and pair conventions of
+    :func:`jaxmotion.eval.evaluator.text_motion_scores`.
+
+    Args:
+      gt_joints: ``[N, T, 22, 3]``, ``gt_mask [N, T]``: the dataset's motions of the N cases.
+      gen_joints: ``[N, T', 22, 3]`` or ``[N, K, T', 22, 3]`` (K samples per case) with
+        ``gen_mask`` ``[N, T']`` or ``[N, K, T']``.
+      rng: int seed or numpy Generator (the diversity and multimodality pairs; the real set and
+        every sample set use the same pairs).
+      diversity_pairs, mm_pairs: 300 and 10 as in Guo et al. (the paper: 200 and 20), each
+        reduced to N and K when fewer motions are given (recorded in ``protocol``).
+
+    Returns ``{"real": {"diversity"}, "generated": {...}, "protocol": {...}, "recognizer":
+    describe()}``. ``generated`` has ``fid`` (sample set k against the real motions, N ≥ 2)
+    and ``diversity``, each the mean over the K sample sets, and with K > 1 ``multimodality``
+    (pairs among each case's K samples, averaged over cases). The real set's FID against
+    itself is 0 by construction and its multimodality undefined (one motion per case).
+    """
+    gen_joints, gen_mask = np.asarray(gen_joints), np.asarray(gen_mask)
+    n = np.shape(gt_joints)[0]
+    if gen_joints.ndim == 4:
+        gen_joints, gen_mask = gen_joints[:, None], gen_mask[:, None]
+    if gen_joints.ndim != 5 or gen_joints.shape[0] != n or gen_mask.shape != gen_joints.shape[:3]:
+        raise ValueError(f"for {n} real motions gen_joints must be [N, T, 22, 3] or "
+                         f"[N, K, T, 22, 3] with gen_mask [N, T] or [N, K, T]; got "
+                         f"{gen_joints.shape} and {gen_mask.shape}")
+    k, t = gen_joints.shape[1], gen_joints.shape[2]
+    real_f = recognizer.features(gt_joints, gt_mask)
+    gen_f = recognizer.features(gen_joints.reshape(n * k, t, 22, 3),
+                                gen_mask.reshape(n * k, t)).reshape(n, k, -1)
+    seed = int(rng.integers(2**62) if isinstance(rng, np.random.Generator) else rng)
+    protocol = {"num_cases": n, "sample_sets": k,
+                "diversity_pairs": min(diversity_pairs, n)}
+
+    def div(f):
+        return diversity(f, protocol["diversity_pairs"], np.random.default_rng([seed, 1]))
+
+    sets = [{"diversity": div(gen_f[:, i]), **({"fid": fid(real_f, gen_f[:, i])}
+                                               if n >= 2 else {})} for i in range(k)]
+    generated = {key: float(np.mean([s[key] for s in sets])) for key in sets[0]}
+    if k > 1:
+        protocol["mm_pairs"] = min(mm_pairs, k)
+        generated["multimodality"] = multimodality(gen_f, protocol["mm_pairs"],
+                                                   np.random.default_rng([seed, 2]))
+    return {"real": {"diversity": div(real_f)}, "generated": generated, "protocol": protocol,
+            "recognizer": recognizer.describe()}

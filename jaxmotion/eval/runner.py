@@ -18,6 +18,14 @@ trained on (no rotation), then scored:
 - **text–motion** (with an evaluator, :mod:`jaxmotion.eval.evaluator`): FID, R-precision
   top 1/2/3, MultiModal distance, Diversity, MultiModality (K ≥ 2), and a "real" row from the
   ground truth.
+- **action** (with a recognizer, :mod:`jaxmotion.eval.recognizer`; the object-centric paper's
+  Table 1): action accuracy (``action_recognized``), and on the recognizer's penultimate-layer
+  features ``rec_fid`` (each of the K sample sets against the dataset's motions of the same
+  cases, averaged), ``rec_diversity`` (random pairs, as Diversity above) and
+  ``rec_multimodality`` (pairs among each case's K samples, K ≥ 2; the paper pairs motions of
+  the same action class instead), with the dataset's own ``rec_diversity`` in the "real" row.
+  FID, diversity and multimodality are numbers of a whole sample set: they are in
+  ``results.json`` (per replication and summary), not in ``cases.jsonl``.
 
 **Protocols.** ``protocol="paper"`` (default) crops each case around the dataset's motion, as
 the papers do; where that crop sits then tells much of where the target is (the object of the
@@ -61,6 +69,8 @@ PLAUSIBILITY = ("teleport", "pelvis_speed_max", "joint_speed_max", "jerk_mean",
 GROUNDING = ("min_dist", "pelvis_dist", "all_dist", "success@0.1", "success@0.3", "success@0.5")
 TEXT_MOTION = ("fid", "r_precision_top1", "r_precision_top2", "r_precision_top3",
                "multimodal_dist", "diversity", "multimodality")
+#: On the action recognizer's features (the object-centric paper's Table 1), with a recognizer.
+RECOGNIZER_SET = ("rec_fid", "rec_diversity", "rec_multimodality")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -498,6 +508,8 @@ def evaluate(
                            "body": (f"mannequin (SMPL-X fit, every {vertex_stride}th vertex)"
                                     if body else "joint spheres"),
                            "evaluator": getattr(evaluator, "version", None),
+                           "recognizer": (recognizer.describe() if recognizer is not None
+                                          else None),
                            "protocol": protocol,
                            **({"grounding": grounding} if protocol == "generate" else {})},
               "models": {}}
@@ -616,7 +628,21 @@ def evaluate(
                 rep.update({k: float(v) for k, v in tm["generated"].items()
                             if not k.endswith("_ci95")})  # intervals come from replications
                 if r == 0 and "real" in tm:
-                    report.setdefault("real", {k: float(v) for k, v in tm["real"].items()})
+                    real = report.setdefault("real", {})
+                    for k, v in tm["real"].items():
+                        real.setdefault(k, float(v))
+            if recognizer is not None:
+                from jaxmotion.eval.recognizer import recognizer_scores
+
+                mask = np.stack([c["mask"] for c in cases])
+                rs = recognizer_scores(recognizer, np.stack([c["gt"] for c in cases]), mask,
+                                       joints, np.broadcast_to(mask[:, None], joints.shape[:3]),
+                                       np.random.default_rng([seed, r, 1]))
+                rep.update({f"rec_{k}": float(v) for k, v in rs["generated"].items()})
+                if r == 0:  # the dataset's motions (the same for every model)
+                    real = report.setdefault("real", {})
+                    for k, v in rs["real"].items():
+                        real.setdefault(f"rec_{k}", float(v))
             reps.append(rep)
         keys = sorted({k for rep in reps for k in rep})
         report["models"][spec.name] = {
@@ -773,21 +799,29 @@ def format_markdown(report: dict) -> str:
             "pelvis speed p99 (m/s) ↓", "top joint speed (m/s) ↓", "jerk (m/s³) ↓",
             "floor penetration (cm) ↓", "in furniture (%) ↓", "action, judge (%) ↑",
             "action, recognizer (%) ↑"]
-    lines += ["", "**Plausibility and action** (a teleport: a joint faster than 9 m/s or the "
-              "pelvis faster than 3 m/s between two frames; in furniture: the share of frames "
-              "with a joint inside the box, shrunk 5 cm, of an object other than the target, "
-              "a walk's target included; action: the share of motions doing "
-              "the instruction's action on its target, by the geometric judge at the anchor "
-              "frame and by the action recognizer)", "", "| " + " | ".join(head) + " |",
-              "|" + "---|" * len(head)]
     plaus_keys = (("teleport", 100, 1), ("pelvis_speed_p50", 1, 2), ("pelvis_speed_p99", 1, 2),
                   ("joint_speed_max", 1, 2), ("jerk_mean", 1, 1), ("floor_penetration", 100, 2),
                   ("in_furniture", 100, 1), ("action_judged", 100, 1),
                   ("action_recognized", 100, 1))
-    if "ground_truth" in report:
-        g = report["ground_truth"]
+    has_rec = any(k in m["summary"] for m in models.values() for k in RECOGNIZER_SET)
+    about_rec = ""
+    if has_rec:
+        head += ["FID (rec.) ↓", "diversity (rec.) →", "multimodality (rec.) ↑"]
+        plaus_keys += tuple((k, 1, 3) for k in RECOGNIZER_SET)
+        about_rec = ("; FID, diversity and multimodality (rec.): on the action recognizer's "
+                     "features, as the object-centric paper's Table 1")
+    lines += ["", ("**Plausibility and action** (a teleport: a joint faster than 9 m/s or the "
+                   "pelvis faster than 3 m/s between two frames; in furniture: the share of "
+                   "frames with a joint inside the box, shrunk 5 cm, of an object other than "
+                   "the target, a walk's target included; action: the share of motions "
+                   "doing the instruction's action on its target, by the geometric judge at the "
+                   f"anchor frame and by the action recognizer{about_rec})"), "",
+              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    real = {k: v for k, v in report.get("real", {}).items() if k in RECOGNIZER_SET}
+    if "ground_truth" in report or (has_rec and real):
+        g = {**report.get("ground_truth", {}), **real}  # FID against itself: 0, not shown
         lines.append("| " + " | ".join(["dataset motions", "–"] + [
-            f"{g[k] * sc:.{d}f}" if g.get(k) is not None else "–"
+            f"{g[k] * sc:.{d}f}" if g.get(k) is not None and k != "rec_fid" else "–"
             for k, sc, d in plaus_keys]) + " |")
     for name, m in models.items():
         s = m["summary"]

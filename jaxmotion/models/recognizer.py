@@ -15,7 +15,9 @@ Network (small enough to train in minutes on a CPU): z-scored features -> ``conv
 Conv1d (kernel 4, stride 2, LeakyReLU 0.2, dropout; T / 2^L tokens, each seeing about
 ``3 * 2^L`` frames) -> pooling over the valid tokens: mean, max, the first and the last token
 (the first and last keep the order: *sit* ends low, *stand up* starts low) -> Linear,
-LayerNorm, LeakyReLU, dropout -> Linear -> 4 logits in the order of :data:`ACTIONS`.
+LayerNorm, LeakyReLU, dropout (:meth:`ActionRecognizer.features`, ``[B, hidden]``, the
+features FID / diversity / multimodality are measured on) -> Linear -> 4 logits in the order
+of :data:`ACTIONS`.
 Activations past a motion's end are zeroed at every level, so the logits do not depend on
 padding values or the padded length.
 
@@ -102,6 +104,14 @@ class ActionRecognizer(nnx.Module):
 
     def __call__(self, joints: jax.Array, mask: jax.Array, *,
                  deterministic: bool | None = None) -> jax.Array:
+        return self.fc2(self.features(joints, mask, deterministic=deterministic))
+
+    def features(self, joints: jax.Array, mask: jax.Array, *,
+                 deterministic: bool | None = None) -> jax.Array:
+        """The penultimate (pre-logit) activations ``[B, hidden]``: the head's hidden layer
+        after LayerNorm, LeakyReLU and dropout (none with ``deterministic=True``). Like the
+        logits they depend neither on padded frames nor on where the motion is or which way
+        it faces; FID, diversity and multimodality "on the recognizer's features" use them."""
         t = mask.shape[1]
         length = motion_lengths(mask)
         feats = canonical_motion_features(joints, mask)
@@ -117,8 +127,8 @@ class ActionRecognizer(nnx.Module):
         peak = jnp.max(jnp.where(valid[..., None], x, -jnp.inf), axis=1)
         last = jnp.take_along_axis(x, (n - 1)[:, None, None], axis=1)[:, 0]
         h = jnp.concatenate([mean, peak, x[:, 0], last], axis=-1)
-        h = self.drop(nnx.leaky_relu(self.norm(self.fc1(h)), 0.2), deterministic=deterministic)
-        return self.fc2(h)
+        return self.drop(nnx.leaky_relu(self.norm(self.fc1(h)), 0.2),
+                         deterministic=deterministic)
 
 
 def valid_tokens(x: jax.Array, length: jax.Array, frames: int) -> jax.Array:

@@ -484,11 +484,14 @@ def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis
                           teleport_pelvis_speed=brisk_pelvis_speed).reshape(b, m)
         tier = jnp.maximum(tier, brisk.astype(jnp.int32))
     if avoid is not None:  # then the fewest frames touching furniture: the rank under the tier
-        near = jnp.linalg.norm(motions[:, :, :, :, None] - jnp.asarray(points)[:, None, None,
-                                                                            None], axis=-1)
-        off = ~jnp.asarray(avoid, bool)[:, None, None, None]  # [B,1,1,1,N]
-        touch = jnp.any(jnp.where(off, jnp.inf, near) < AVOID_DISTANCE, axis=(3, 4)) & mask[
-            :, None]
+        # squared distances joint -> point as |j|^2 + |p|^2 - 2 j.p (one matmul, no [.., 3])
+        pts = jnp.asarray(points, jnp.float32)  # [B,N,3]
+        j = motions.reshape(b, -1, 3)  # [B, M*T*22, 3]
+        sq = (jnp.sum(j * j, -1)[:, :, None] + jnp.sum(pts * pts, -1)[:, None, :]
+              - 2.0 * jnp.einsum("bjc,bnc->bjn", j, pts))
+        sq = jnp.where(jnp.asarray(avoid, bool)[:, None, :], sq, jnp.inf)
+        touch = (jnp.min(sq, axis=-1).reshape(motions.shape[:4]) < AVOID_DISTANCE ** 2).any(
+            axis=3) & mask[:, None]
         tier = tier * 1000 + jnp.minimum(jnp.sum(touch, axis=2), 999)
     best_tier = jnp.min(tier, axis=1, keepdims=True)  # only the best tier's candidates compete
     best = jnp.argmin(jnp.where(tier == best_tier, score, jnp.inf), axis=1)  # ties: the first

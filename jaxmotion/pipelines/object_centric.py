@@ -376,30 +376,36 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))
     normals = (np.asarray(room.normal[pick], np.float32) @ rot.T).astype(np.float32)
     avoid = furniture_mask(pts, room.instance[pick], room.objects, on_target, action)
+    betas = np.zeros((k, 10), np.float32)
     args = (np.asarray(jax.random.key_data(root)), tile(pts), tile(normals), tile(on_target),
-            tile(np.asarray(pooled_text(text_emb), np.float32)[0]),
-            np.zeros((k, 10), np.float32), np.ones((k, frames), bool), np.full(k, anchor_first),
-            np.full(k, action_index(action), np.int32), tile(avoid))
+            tile(np.asarray(pooled_text(text_emb), np.float32)[0]), betas,
+            np.ones((k, frames), bool), np.full(k, anchor_first),
+            np.full(k, action_index(action), np.int32), tile(avoid),
+            np.asarray(rot, np.float32), np.asarray(shift, np.float32))
     stage = SamplerSpec("ddim", opts.steps, guidance=opts.guidance[1])
     n_mot = opts.motion_candidates
 
     def build():
         pipe = load_object_pipeline(str(files[0]), str(files[1]))
         main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]
-        return lambda kd, p, n, t, e, b, m, f, a, av: pipe.sample(
-            main(kd), p, n, t, e, b, m, trajectory=stage, completion=stage,
-            motion_candidates=n_mot, anchor_first=f, action=a, avoid=av)
+
+        def run(kd, p, n, t, e, b, m, f, a, av, rot, shift):
+            res = pipe.sample(main(kd), p, n, t, e, b, m, trajectory=stage, completion=stage,
+                              motion_candidates=n_mot, anchor_first=f, action=a, avoid=av)
+            # the features in the scene frame (x_scene = x_crop @ rot + shift): SMPL-X's
+            motion = res["motion"]
+            turned = rot.T @ trajectory_frames(motion)[1]
+            scene = jnp.concatenate([motion[..., :3] @ rot + shift,
+                                     matrix_to_rotation_6d(turned),
+                                     motion[..., TRAJECTORY_DIM:]], axis=-1)
+            return {"joints": res["joints"], **motion_to_smplx(scene, b)}
+
+        return run
 
     res = jax.device_get(cached_call(aot_dir, "sample-object-centric",
                                      digest(versions, stage, n_mot, Path(files[0]),
                                             Path(files[1])), build, args))
     joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
-    # the features in the scene frame: x_scene = x_crop @ rot + shift, orientations turned
-    motion = np.array(res["motion"], np.float32)
-    motion[..., :3] = motion[..., :3] @ rot + shift
-    turned = np.asarray(rot.T, np.float32) @ np.asarray(trajectory_frames(motion)[1])
-    motion[..., 3:TRAJECTORY_DIM] = np.asarray(matrix_to_rotation_6d(jnp.asarray(turned)))
-    betas = np.zeros((k, 10), np.float32)
-    smplx = {n: np.asarray(v, np.float32) for n, v in motion_to_smplx(motion, betas).items()}
+    smplx = {n: np.asarray(res[n], np.float32) for n in ("global_orient", "body_pose", "transl")}
     smplx["betas"] = betas
     return joints, (pick, rot, shift), smplx

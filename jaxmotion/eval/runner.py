@@ -399,9 +399,12 @@ def _action_columns(case, joints, recognizer) -> dict:
 def _in_furniture(case, joints) -> float:
     """The mean over the K motions ``joints [K,T,22,3]`` (crop frame) of the share of frames
     with a joint inside another object's box (:func:`jaxmotion.eval.furniture.
-    furniture_frames`; a walk's target counts too, which the dataset's walks never enter)."""
+    furniture_frames`; a walk's target counts too, which the dataset's walks never enter).
+    NaN (not counted in the means) for a case without the room's object table or crop frame."""
     from jaxmotion.eval.furniture import furniture_frames
 
+    if not case.get("objects") or "rotation" not in case or "shift" not in case:
+        return float("nan")
     world = joints @ np.asarray(case["rotation"]) + np.asarray(case["shift"])
     exclude = () if case["action"] == "walk" else (case.get("target_id"),)
     return float(np.mean(furniture_frames(world, case.get("objects", ()),
@@ -821,7 +824,8 @@ def format_markdown(report: dict) -> str:
     if "ground_truth" in report or (has_rec and real):
         g = {**report.get("ground_truth", {}), **real}  # FID against itself: 0, not shown
         lines.append("| " + " | ".join(["dataset motions", "–"] + [
-            f"{g[k] * sc:.{d}f}" if g.get(k) is not None and k != "rec_fid" else "–"
+            f"{g[k] * sc:.{d}f}" if g.get(k) is not None and np.isfinite(g[k])
+            and k != "rec_fid" else "–"
             for k, sc, d in plaus_keys]) + " |")
     for name, m in models.items():
         s = m["summary"]

@@ -245,16 +245,12 @@ def _synthesize(room, centre, chosen, anchor_first: bool, emb, opts: GenerateOpt
     import jax
 
     from jaxmotion.compiled import cached_call, digest
-    from jaxmotion.data.crop import crop_at, model_colors
+    from jaxmotion.data.crop import generate_crop, model_colors
     from jaxmotion.grounding import object_table, same_class_others
 
     adm_sampler, amdm_sampler = samplers
     k, room_view = opts.samples, models.room_view
-    try:
-        pick, pts, shift, rot = crop_at(np.random.default_rng([opts.seed, 1]), room.xyz, centre,
-                                        models.spec)
-    except ValueError as e:
-        raise GenerateError(f"the scene has no points near the chosen region: {e}") from e
+    pick, pts, shift, rot = generate_crop(room.xyz, centre, models.spec, opts.seed)
     colors = model_colors(room.rgb[pick])
     # once the target is known (given, or found with the scene graph's help), the other
     # objects of its class are left out of the ADM's map

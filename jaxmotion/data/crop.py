@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Crop", "CropSpec", "crop_at", "crop_sample", "crop_spec_from_config", "features_to_joints",
-           "model_colors", "motion_features"]
+           "generate_crop", "model_colors", "motion_features"]
 
 
 @dataclass(frozen=True)
@@ -193,6 +193,18 @@ def crop_at(
     rot = _rot_z(angle)
     return pick, ((pts - shift) @ rot.T).astype(np.float32), shift, rot
 
+
+
+def generate_crop(xyz: np.ndarray, centre, spec: CropSpec, seed: int):
+    """The crop ``generate`` samples in around ``centre``, whichever pipeline samples:
+    :func:`crop_at` on the run's ``seed`` (its stream 1). :class:`~jaxmotion.errors.
+    GenerateError` when no point of the scene lies in the square."""
+    from jaxmotion.errors import GenerateError
+
+    try:
+        return crop_at(np.random.default_rng([seed, 1]), xyz, centre, spec)
+    except ValueError as e:
+        raise GenerateError(f"the scene has no points near the chosen region: {e}") from e
 
 def motion_features(joints: np.ndarray) -> np.ndarray:
     """The models' motion representation: absolute joint positions, ``[..., T, 22, 3] -> [..., T, 66]``."""

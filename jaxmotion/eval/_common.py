@@ -102,3 +102,22 @@ def motion_batch(joints, mask=None, *, multiple: int = 32):
     joints = np.pad(joints, ((0, 0), (0, pad), (0, 0), (0, 0)))
     mask = np.pad(mask, ((0, 0), (0, pad)))
     return joints, mask
+
+
+def sample_sets(gen_joints, gen_mask, n: int, of: str):
+    """Generated motions as K sample sets of the N cases: ``(joints [N, K, T, 22, 3], mask
+    [N, K, T])`` from those shapes or from ``[N, T, 22, 3]`` / ``[N, T]`` (K = 1);
+    :class:`ValueError` naming the shapes otherwise (``of``: what the N are, e.g. "texts")."""
+    gen_joints, gen_mask = np.asarray(gen_joints), np.asarray(gen_mask)
+    if gen_joints.ndim == 4:
+        gen_joints, gen_mask = gen_joints[:, None], gen_mask[:, None]
+    if gen_joints.ndim != 5 or gen_joints.shape[0] != n or gen_mask.shape != gen_joints.shape[:3]:
+        raise ValueError(f"for {n} {of} gen_joints must be [N, T, 22, 3] or [N, K, T, 22, 3] "
+                         f"with gen_mask [N, T] or [N, K, T]; got {gen_joints.shape} and "
+                         f"{gen_mask.shape}")
+    return gen_joints, gen_mask
+
+
+def seed_of(rng) -> int:
+    """An int seed from an int or a :class:`numpy.random.Generator` (one draw from it)."""
+    return int(rng.integers(2**62) if isinstance(rng, np.random.Generator) else rng)

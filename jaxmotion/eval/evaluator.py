@@ -35,7 +35,7 @@ from flax import nnx
 
 from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.data.format import load_manifest
-from jaxmotion.eval._common import motion_batch, run_in_chunks
+from jaxmotion.eval._common import motion_batch, run_in_chunks, sample_sets, seed_of
 from jaxmotion.eval.text_motion_metrics import (
     diversity,
     fid,
@@ -179,14 +179,8 @@ def text_motion_scores(evaluator: Evaluator, texts: list[str], gt_joints, gt_mas
     replications with ``<key>_ci95`` (1.96 std / sqrt K) when K > 1, and ``multimodality``
     over the K samples per text when K > 1.
     """
-    gen_joints, gen_mask = np.asarray(gen_joints), np.asarray(gen_mask)
     n = len(texts)
-    if gen_joints.ndim == 4:
-        gen_joints, gen_mask = gen_joints[:, None], gen_mask[:, None]
-    if gen_joints.ndim != 5 or gen_joints.shape[0] != n or gen_mask.shape != gen_joints.shape[:3]:
-        raise ValueError(f"for {n} texts gen_joints must be [N, T, 22, 3] or [N, K, T, 22, 3] "
-                         f"with gen_mask [N, T] or [N, K, T]; got {gen_joints.shape} and "
-                         f"{gen_mask.shape}")
+    gen_joints, gen_mask = sample_sets(gen_joints, gen_mask, n, "texts")
     if np.shape(gt_joints)[:1] != (n,):
         raise ValueError(f"gt_joints must have one motion per text ({n}), got "
                          f"{np.shape(gt_joints)}")
@@ -197,7 +191,7 @@ def text_motion_scores(evaluator: Evaluator, texts: list[str], gt_joints, gt_mas
                                     gen_mask.reshape(n * k, t)).reshape(n, k, -1)
     protocol = {"num_texts": n, "replications": k, "pool": _reduced("pool", pool, n),
                 "diversity_pairs": _reduced("diversity_pairs", diversity_pairs, n)}
-    seed = int(rng.integers(2**62) if isinstance(rng, np.random.Generator) else rng)
+    seed = seed_of(rng)
 
     def row(motion_f):
         top = r_precision(text_f, motion_f, 3, protocol["pool"],

@@ -42,7 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from jaxmotion.eval._common import motion_batch, run_in_chunks
+from jaxmotion.eval._common import motion_batch, run_in_chunks, sample_sets, seed_of
 from jaxmotion.eval.text_motion_metrics import diversity, fid, multimodality
 from jaxmotion.models.recognizer import (
     ACTIONS,
@@ -227,19 +227,13 @@ def recognizer_scores(recognizer: Recognizer, gt_joints, gt_mask, gen_joints, ge
     (pairs among each case's K samples, averaged over cases). The real set's FID against
     itself is 0 by construction and its multimodality undefined (one motion per case).
     """
-    gen_joints, gen_mask = np.asarray(gen_joints), np.asarray(gen_mask)
     n = np.shape(gt_joints)[0]
-    if gen_joints.ndim == 4:
-        gen_joints, gen_mask = gen_joints[:, None], gen_mask[:, None]
-    if gen_joints.ndim != 5 or gen_joints.shape[0] != n or gen_mask.shape != gen_joints.shape[:3]:
-        raise ValueError(f"for {n} real motions gen_joints must be [N, T, 22, 3] or "
-                         f"[N, K, T, 22, 3] with gen_mask [N, T] or [N, K, T]; got "
-                         f"{gen_joints.shape} and {gen_mask.shape}")
+    gen_joints, gen_mask = sample_sets(gen_joints, gen_mask, n, "real motions")
     k, t = gen_joints.shape[1], gen_joints.shape[2]
     real_f = recognizer.features(gt_joints, gt_mask)
     gen_f = recognizer.features(gen_joints.reshape(n * k, t, 22, 3),
                                 gen_mask.reshape(n * k, t)).reshape(n, k, -1)
-    seed = int(rng.integers(2**62) if isinstance(rng, np.random.Generator) else rng)
+    seed = seed_of(rng)
     protocol = {"num_cases": n, "sample_sets": k,
                 "diversity_pairs": min(diversity_pairs, n)}
 

@@ -396,6 +396,14 @@ def _action_columns(case, joints, recognizer) -> dict:
     return out
 
 
+def _add_real(report: dict, values: dict, prefix: str = "") -> None:
+    """Put the dataset's own numbers ``values`` in ``report["real"]`` (as ``prefix + key``),
+    keeping those already there: every model's first replication scores the same motions."""
+    real = report.setdefault("real", {})
+    for k, v in values.items():
+        real.setdefault(prefix + k, float(v))
+
+
 def _in_furniture(case, joints) -> float:
     """The mean over the K motions ``joints [K,T,22,3]`` (crop frame) of the share of frames
     with a joint inside another object's box (:func:`jaxmotion.eval.furniture.
@@ -406,10 +414,9 @@ def _in_furniture(case, joints) -> float:
     if not case.get("objects") or "rotation" not in case or "shift" not in case:
         return float("nan")
     world = joints @ np.asarray(case["rotation"]) + np.asarray(case["shift"])
-    exclude = () if case["action"] == "walk" else (case.get("target_id"),)
-    return float(np.mean(furniture_frames(world, case.get("objects", ()),
-                                          [i for i in exclude if i is not None],
-                                          case["mask"])))
+    target = case.get("target_id")
+    exclude = () if case["action"] == "walk" or target is None else (target,)
+    return float(np.mean(furniture_frames(world, case["objects"], exclude, case["mask"])))
 
 
 def _target_box(case):
@@ -631,9 +638,7 @@ def evaluate(
                 rep.update({k: float(v) for k, v in tm["generated"].items()
                             if not k.endswith("_ci95")})  # intervals come from replications
                 if r == 0 and "real" in tm:
-                    real = report.setdefault("real", {})
-                    for k, v in tm["real"].items():
-                        real.setdefault(k, float(v))
+                    _add_real(report, tm["real"])
             if recognizer is not None:
                 from jaxmotion.eval.recognizer import recognizer_scores
 
@@ -643,9 +648,7 @@ def evaluate(
                                        np.random.default_rng([seed, r, 1]))
                 rep.update({f"rec_{k}": float(v) for k, v in rs["generated"].items()})
                 if r == 0:  # the dataset's motions (the same for every model)
-                    real = report.setdefault("real", {})
-                    for k, v in rs["real"].items():
-                        real.setdefault(f"rec_{k}", float(v))
+                    _add_real(report, rs["real"], "rec_")
             reps.append(rep)
         keys = sorted({k for rep in reps for k in rep})
         report["models"][spec.name] = {

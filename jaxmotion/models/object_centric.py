@@ -146,13 +146,12 @@ class ObjectCentricDenoiser(nnx.Module):
                                      f"{res}, 7], got {jnp.shape(cond['traj_sensor'])}")
                 feats = jnp.concatenate([traj, ts * keep_scene[:, :, None]], axis=-1)
             if cfg.traj_velocity:
-                vel = jnp.asarray(cond["traj_velocity"], jnp.float32) if (
-                    "traj_velocity" in cond) else None
-                if vel is None or vel.shape != (b, nt, VELOCITY_DIM):
+                vel = cond.get("traj_velocity")
+                if vel is None or jnp.shape(vel) != (b, nt, VELOCITY_DIM):
                     raise ValueError(f"cond['traj_velocity'] must be [{b}, {nt}, {VELOCITY_DIM}]"
                                      f" (traj_velocity=True), got "
-                                     f"{None if vel is None else vel.shape}")
-                feats = jnp.concatenate([feats, vel], axis=-1)
+                                     f"{None if vel is None else jnp.shape(vel)}")
+                feats = jnp.concatenate([feats, jnp.asarray(vel, jnp.float32)], axis=-1)
             seq.append(self.traj_mlp(feats) + frame_pos + self.type_embed[0])
             seq_mask.append(mask)
             motion = self.motion_in(x) + frame_pos + self.type_embed[1]

@@ -114,7 +114,6 @@ def trajectory_velocity(features, mask=None, fps: float = 30.0):
       mask: ``[..., T]`` bool, True = valid frame (default all).
     """
     pelvis, rot = trajectory_frames(features)
-    t = pelvis.shape[-2]
     mask = (jnp.ones(pelvis.shape[:-1], bool) if mask is None
             else jnp.broadcast_to(jnp.asarray(mask, bool), pelvis.shape[:-1]))
     fwd = rot[..., :, 2]
@@ -123,8 +122,8 @@ def trajectory_velocity(features, mask=None, fps: float = 30.0):
     pad = jnp.zeros(mask.shape[:-1] + (1,), bool)
     m_next = jnp.concatenate([mask[..., 1:], pad], -1) & mask
     m_prev = jnp.concatenate([pad, mask[..., :-1]], -1) & mask
-    nxt = jnp.concatenate([x[..., 1:, :], x[..., -1:, :]], -2) if t > 1 else x
-    prv = jnp.concatenate([x[..., :1, :], x[..., :-1, :]], -2) if t > 1 else x
+    nxt = jnp.concatenate([x[..., 1:, :], x[..., -1:, :]], -2)  # the next frame (last: itself)
+    prv = jnp.concatenate([x[..., :1, :], x[..., :-1, :]], -2)
     d = jnp.where(m_next[..., None], nxt, x) - jnp.where(m_prev[..., None], prv, x)
     d = d.at[..., 3].set((d[..., 3] + jnp.pi) % (2 * jnp.pi) - jnp.pi)  # wrap the turn
     steps = (m_next.astype(jnp.float32) + m_prev.astype(jnp.float32))[..., None]

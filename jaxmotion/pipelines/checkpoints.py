@@ -143,6 +143,7 @@ def resolve_cvae_checkpoints(checkpoints) -> tuple[Path, ...]:
     given = checkpoints if isinstance(checkpoints, (tuple, list)) else (checkpoints,)
     paths = tuple(weights_path(p) for p in given)
     seen: dict[str, Path] = {}
+    shapes = set()
     for p in paths:
         if not p.is_file():
             raise GenerateError(f"{p}: no such checkpoint file; {how}")
@@ -154,7 +155,7 @@ def resolve_cvae_checkpoints(checkpoints) -> tuple[Path, ...]:
             raise GenerateError(f"{seen[action]} and {p} are both cVAEs for "
                                 f"{action or 'any action (action-agnostic)'}; give one")
         seen[action] = p
-    shapes = {(weights_config(p)["max_frames"], weights_config(p)["crop"]["size"]) for p in paths}
+        shapes.add((cfg["max_frames"], cfg["crop"]["size"]))
     if len(shapes) > 1:
         raise GenerateError(f"the cVAE checkpoints {', '.join(map(str, paths))} differ in "
                             "max_frames or crop.size; give ones trained alike")

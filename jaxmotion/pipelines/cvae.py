@@ -130,7 +130,7 @@ def sample_in_room(room, centre, text: str, action, opts, files, root, aot_dir, 
 
     from jaxmotion._jax_setup import enable_compilation_cache
     from jaxmotion.compiled import cached_call, digest
-    from jaxmotion.data.crop import crop_at, crop_spec_from_config, model_colors
+    from jaxmotion.data.crop import crop_spec_from_config, generate_crop, model_colors
     from jaxmotion.pipelines.checkpoints import weights_config
     from jaxmotion.text.condition import embed_one
 
@@ -139,11 +139,7 @@ def sample_in_room(room, centre, text: str, action, opts, files, root, aot_dir, 
     spec, frames = crop_spec_from_config(run_cfg), int(run_cfg["max_frames"])
     if spec.num_points != int(run_cfg["model"]["num_points"]):
         raise GenerateError(f"{file}: crop.num_points and model.num_points differ")
-    try:
-        pick, pts, shift, rot = crop_at(np.random.default_rng([opts.seed, 1]), room.xyz,
-                                        centre, spec)
-    except ValueError as e:
-        raise GenerateError(f"the scene has no points near the chosen region: {e}") from e
+    pick, pts, shift, rot = generate_crop(room.xyz, centre, spec, opts.seed)
     words = embed_one(text, enable_compilation_cache() / "text-embeddings",
                       int(run_cfg["model"]["text_tokens"]))
     k = opts.samples

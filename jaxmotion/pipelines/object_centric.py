@@ -356,18 +356,14 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     import numpy as np
 
     from jaxmotion.compiled import cached_call, digest
-    from jaxmotion.data.crop import crop_at, crop_spec_from_config
+    from jaxmotion.data.crop import crop_spec_from_config, generate_crop
     from jaxmotion.errors import GenerateError
     from jaxmotion.models.adm import pooled_text
     from jaxmotion.models.weights import read_config
 
     run_cfg = read_config(files[1])
     spec, frames = crop_spec_from_config(run_cfg), int(run_cfg["max_frames"])
-    try:
-        pick, pts, shift, rot = crop_at(np.random.default_rng([opts.seed, 1]), room.xyz,
-                                        centre, spec)
-    except ValueError as e:
-        raise GenerateError(f"the scene has no points near the chosen region: {e}") from e
+    pick, pts, shift, rot = generate_crop(room.xyz, centre, spec, opts.seed)
     on_target = room.instance[pick] == chosen
     if not on_target.any():
         raise GenerateError(f"object {chosen} has no point in the {spec.size} m square the "

@@ -61,7 +61,6 @@ WALK_REACH = (0.3, 0.6)
 #: How far out (m) a walk's end may move when nothing within WALK_REACH is free or reachable
 WALK_WIDER = (1.0, 1.5)
 ACTIONS = ("walk", "sit", "stand_up", "lie")
-#: Object categories a body may touch on its way (not furniture to keep out of).
 _STAND_UP = 2  # its index in jaxmotion.models.object_centric.ACTION_CLASSES
 _TAKES = {"sit": SEAT_CATEGORIES, "stand_up": SEAT_CATEGORIES, "lie": LIE_CATEGORIES}
 _TEXT = {"walk": "walk to the {}", "sit": "sit on the {}", "stand_up": "stand up from the {}",
@@ -306,8 +305,9 @@ class Teller:
                shift.astype(np.float32))
         if not others:
             return out
-        solid = [o["id"] for o in self.scene.objects if o["category"] not in PASSABLE]
-        return (*out, np.isin(inst, solid) & (inst != oid) & (pts[:, 2] > 0.1))
+        from jaxmotion.pipelines.object_centric import furniture_mask
+
+        return (*out, furniture_mask(pts, inst, self.scene.objects, inst == oid))
 
     def next_key(self):
         self.windows += 1

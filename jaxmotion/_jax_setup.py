@@ -7,6 +7,8 @@ import os
 import platform
 from pathlib import Path
 
+import numpy as np
+
 
 @functools.lru_cache(maxsize=1)
 def host_key() -> str:
@@ -72,3 +74,17 @@ def _scratch_root() -> Path:
     root = Path(tempfile.mkdtemp(prefix="jaxmotion-cache-"))
     atexit.register(shutil.rmtree, root, ignore_errors=True)
     return root
+
+
+def seed_key_data(seed: int) -> np.ndarray:
+    """``jax.random.key_data(jax.random.key(seed))`` computed on the host (``uint32[2]``):
+    the eager ops cost a compilation each in every fresh process (~0.1 s together). The
+    default threefry key of a seed ``0 <= seed < 2**31`` is ``[0, seed]``; other seeds, another
+    PRNG implementation or 64-bit mode go through JAX."""
+    import jax
+
+    seed = int(seed)
+    if (0 <= seed < 2**31 and not jax.config.jax_enable_x64
+            and jax.config.jax_default_prng_impl == "threefry2x32"):
+        return np.array([0, seed], np.uint32)
+    return np.asarray(jax.random.key_data(jax.random.key(seed)))

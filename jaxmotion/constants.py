@@ -14,8 +14,8 @@
 
 from __future__ import annotations
 
-__all__ = ["AFFORDANCE_JOINTS", "AFFORDANCE_SIGMA", "FOOT_JOINTS", "NUM_JOINTS", "PASSABLE",
-           "SCENE_FPS", "TEXT_ENCODER"]
+__all__ = ["ACTION_CLASSES", "AFFORDANCE_JOINTS", "AFFORDANCE_SIGMA", "FOOT_JOINTS", "NUM_JOINTS",
+           "PASSABLE", "SCENE_FPS", "TEXT_ENCODER", "UNKNOWN_ACTION"]
 
 SCENE_FPS: float = 30.0
 NUM_JOINTS: int = 22
@@ -24,3 +24,7 @@ AFFORDANCE_SIGMA: float = 0.8
 TEXT_ENCODER: str = "minilm"
 FOOT_JOINTS: tuple[int, ...] = (7, 8, 10, 11)
 PASSABLE: tuple[str, ...] = ("door", "window", "picture", "curtain", "rug")
+#: The object-centric models' action classes (their action embedding's rows); the last is
+#: "unknown" (the instruction named none of the four).
+ACTION_CLASSES: tuple[str, ...] = ("walk", "sit", "stand_up", "lie", "unknown")
+UNKNOWN_ACTION: int = len(ACTION_CLASSES) - 1

@@ -127,7 +127,7 @@ def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None
 def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: bool):
     import jax
 
-    from jaxmotion._jax_setup import enable_compilation_cache
+    from jaxmotion._jax_setup import enable_compilation_cache, seed_key_data
     from jaxmotion.compiled import digest
     from jaxmotion.diffusion.samplers import SamplerSpec
     from jaxmotion.grounding import AdmChooser, explain, find_object, find_region, read_instruction
@@ -155,12 +155,14 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         warnings.warn(message, UserWarning, stacklevel=3)
     target_obj = None if opts.object_id is None else find_object(room, opts.object_id)
     instruction = read_instruction(text, similarity=xla_cache / "text-embeddings")
-    emb = embed_one(text, xla_cache / "text-embeddings", adm_text_tokens(models.adm_config))
+    emb = embed_one(text, xla_cache / "text-embeddings", 0)  # the ADM's words: when it runs
+    text_emb = functools.cache(lambda: embed_one(text, xla_cache / "text-embeddings",
+                                                 adm_text_tokens(models.adm_config)))
     # the root key's two stage keys (region / room view, then sampling) are split inside the
     # compiled programs, or eagerly only on the paths that need the first: an eager split is
     # an XLA compilation in every fresh process (~0.1 s)
-    root = jax.random.key(opts.seed)
-    stage_key = lambda i: jax.random.split(root)[i]  # noqa: E731
+    root = seed_key_data(opts.seed)  # jax.random.key(seed)'s data, made on the host
+    stage_key = lambda i: jax.random.split(jax.random.wrap_key_data(root))[i]  # noqa: E731
     adm_w, amdm_w = opts.guidance
     adm_sampler = SamplerSpec(method="ddim", steps=opts.adm_steps, guidance=adm_w)
     amdm_sampler = SamplerSpec(method="ddim", steps=opts.steps, guidance=amdm_w,
@@ -176,7 +178,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     if models.room_view:
         from jaxmotion.grounding.region import room_view_maps
 
-        view = room_view_maps(room, models.adm_config, jax.tree.map(lambda a: a[0], emb),
+        view = room_view_maps(room, models.adm_config, jax.tree.map(lambda a: a[0], text_emb()),
                               stage_key(0), adm_sampler, k, opts.seed, aot_dir,
                               digest(versions, adm_sampler, models.text_adm), get_text_pipe)
         lap("adm")
@@ -185,7 +187,8 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         centre = centre_on_object(target_obj, lo, hi, spec.size)
         chosen, how = int(opts.object_id), "object_id"
     else:
-        chooser = AdmChooser(get_text_pipe, emb, lambda: stage_key(0), adm_sampler, opts.seed,
+        chooser = AdmChooser(get_text_pipe, text_emb, lambda: stage_key(0), adm_sampler,
+                             opts.seed,
                              None if aot_dir is None else
                              (aot_dir, digest(versions, adm_sampler, models.text_adm)))
         centre, chosen, how = find_region(room, instruction, opts.grounding, spec, view=view,
@@ -211,7 +214,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
                                         1 if pipeline == "cvae" else opts.motion_candidates)
     else:
         joints, aff, crop, excluded, n_cand, n_mot = _synthesize(
-            room, centre, chosen, instruction.anchor_first, emb, opts, models, view, root,
+            room, centre, chosen, instruction.anchor_first, text_emb(), opts, models, view, root,
             (adm_sampler, amdm_sampler), aot_dir, versions)
     lap("sample")
     smplx, err = {}, np.full(k, np.nan, np.float32)
@@ -260,7 +263,7 @@ def _synthesize(room, centre, chosen, anchor_first: bool, emb, opts: GenerateOpt
     n_mot = opts.motion_candidates if chosen is not None else 1
     tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))  # noqa: E731
     on_target = tile(room.instance[pick] == (chosen if chosen is not None else -2))
-    args = (np.asarray(jax.random.key_data(root)), tile(pts), tile(colors),
+    args = (np.asarray(root), tile(pts), tile(colors),
             jax.tree.map(lambda a: tile(a[0]), emb), np.ones((k, models.frames), bool))
     if room_view:  # the AMDM on the view's maps, carried to the crop (in the crop frame)
         from jaxmotion.pipelines.affordance import AffordancePipeline

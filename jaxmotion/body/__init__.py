@@ -11,7 +11,6 @@
   smoothness terms.
 """
 
-from jaxmotion.body.fit import BodyFit, FitWeights, fit_joints_to_body, initial_pose
 from jaxmotion.body.model import (
     BodyModel,
     BodyOutput,
@@ -34,4 +33,18 @@ from jaxmotion.body.priors import (
     rotation_from_limit_angles,
 )
 
-__all__ = [name for name in dir() if not name.startswith("_")]
+_FIT = ("BodyFit", "FitWeights", "fit_joints_to_body", "initial_pose")
+__all__ = [
+    "JOINT_LIMITS_DEG", "LIMIT_AXES", "BodyFit", "BodyModel", "BodyOutput", "FitWeights",
+    "body_forward", "fit_joints_to_body", "forward_tree", "initial_pose", "joint_limit_excess",
+    "joint_names", "lbs", "limit_angles", "load_mannequin", "load_smplx", "local_rotations",
+    "rotation_from_limit_angles", "shaped_rest", "shaped_rest_host", "vertex_normals",
+]
+
+
+def __getattr__(name):  # the fit (and jaxopt, ~0.3 s to import) only when asked for
+    if name in _FIT:
+        from jaxmotion.body import fit
+
+        return getattr(fit, name)
+    raise AttributeError(f"module 'jaxmotion.body' has no attribute {name!r}")

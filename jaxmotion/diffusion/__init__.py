@@ -23,12 +23,12 @@ from jaxmotion.diffusion.losses import (
     null_condition,
 )
 from jaxmotion.diffusion.samplers import (
+    SamplerSpec,
     ddim_posterior,
     ddim_sample,
     ddim_timesteps,
     ddpm_posterior,
     ddpm_sample,
-    SamplerSpec,
     guided_denoise,
     sample,
 )

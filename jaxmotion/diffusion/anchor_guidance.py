@@ -60,7 +60,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from jaxmotion.models.object_centric import ACTION_CLASSES
+from jaxmotion.constants import ACTION_CLASSES
 
 __all__ = [
     "HOLD",

@@ -36,12 +36,12 @@ from it with ``exp`` / ``expm1`` without float32 cancellation.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import struct
 
 __all__ = [
     "SCHEDULES",
@@ -58,11 +58,12 @@ __all__ = [
 MAX_BETA = 0.999
 
 
-@struct.dataclass
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
 class Schedule:
     """All per-step quantities of a diffusion schedule, float32 arrays of shape ``[T]``.
 
-    A pytree (``flax.struct.dataclass``): pass it through ``jit``/``vmap`` as an
+    A pytree (a frozen dataclass registered with JAX): pass it through ``jit``/``vmap`` as an
     ordinary argument. ``T`` is static (the arrays' shape), see :attr:`num_steps`.
     The formulas are in the module docstring.
     """

@@ -549,14 +549,14 @@ def evaluate(
         oracle = spec.affordance == "gt"
         objects = None
         if spec.object_centric:
-            from jaxmotion.models.adm import pooled_text
-            from jaxmotion.models.weights import weights_path
             from jaxmotion.grounding import read_instruction
+            from jaxmotion.models.weights import weights_path
             from jaxmotion.pipelines.object_centric import (
                 ObjectCentricPipeline,
                 action_index,
                 furniture_mask,
             )
+            from jaxmotion.text.condition import pooled_text
 
             objects = ObjectCentricPipeline.from_files(weights_path(spec.trajectory),
                                                        weights_path(spec.completion))

@@ -40,10 +40,10 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from jaxmotion._atomic import atomic_open
 from jaxmotion.export._common import Z_UP_TO_Y_UP, check_array, check_fps, smplx_motion
+from jaxmotion.export.rotations import euler_zxy, rotvec_to_matrix
 from jaxmotion.geometry.skeleton import (
     NUM_BETAS,
     NUM_JOINTS,
@@ -54,7 +54,7 @@ from jaxmotion.geometry.skeleton import (
 
 __all__ = ["BVH", "read_bvh", "write_bvh"]
 
-_EULER = "ZXY"  # scipy's intrinsic order = the order of the rotation channels
+_EULER = "ZXY"  # intrinsic (euler_zxy) = the order of the rotation channels
 _ROT_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
 _POS_CHANNELS = ("Xposition", "Yposition", "Zposition")
 
@@ -110,10 +110,9 @@ def write_bvh(
     rest = rest_joints_host(betas)
     t = len(go)
 
-    local = Rotation.from_rotvec(np.concatenate([go[:, None], bp], axis=1).reshape(-1, 3))
-    mats = local.as_matrix().reshape(t, NUM_JOINTS, 3, 3)
+    mats = rotvec_to_matrix(np.concatenate([go[:, None], bp], axis=1))  # [T, 22, 3, 3]
     mats[:, 0] = Z_UP_TO_Y_UP @ mats[:, 0]
-    euler = Rotation.from_matrix(mats.reshape(-1, 3, 3)).as_euler(_EULER, degrees=True)
+    euler = euler_zxy(mats, degrees=True)  # the order of the rotation channels (_EULER)
     euler = np.unwrap(euler.reshape(t, NUM_JOINTS, 3), period=360.0, axis=0)
     root_pos = (rest[0] + tr) @ Z_UP_TO_Y_UP.T * scale
 

@@ -144,12 +144,14 @@ def check_output_folder(out) -> Path:
 def scene_heat(res, xyz: np.ndarray) -> np.ndarray:
     """The first sample's affordance (strongest channel) carried to ``xyz``: from the room
     view when there is one (nearest view point within 30 cm), else from the crop (within
-    10 cm); 0 elsewhere."""
-    from scipy.spatial import cKDTree
-
+    10 cm); 0 elsewhere (and everywhere when the pipeline drew no map)."""
     src, maps, reach = res.crop_xyz, res.affordance, 0.1
     if res.view_xyz is not None:
         src, maps, reach = res.view_xyz, res.view_affordance, 0.3
+    if not np.any(maps[:1]):  # the object-centric pipeline: no affordance map
+        return np.zeros(len(xyz), np.float32)
+    from scipy.spatial import cKDTree
+
     d, idx = cKDTree(src).query(xyz, k=1, distance_upper_bound=reach)
     heat = np.zeros(len(xyz), np.float32)
     ok = np.isfinite(d)

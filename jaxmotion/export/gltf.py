@@ -45,7 +45,6 @@ import struct
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from jaxmotion._atomic import atomic_open
 from jaxmotion._version import __version__
@@ -57,6 +56,7 @@ from jaxmotion.export._common import (
     smplx_motion,
     vertex_normals,
 )
+from jaxmotion.export.rotations import rotvec_to_quat
 from jaxmotion.geometry.skeleton import NUM_JOINTS
 
 __all__ = ["write_glb"]
@@ -279,7 +279,7 @@ def write_glb(
             axis=1,
         )
         keep, parents, names = shape["keep"], shape["parents"], shape["names"]
-        quat = Rotation.from_rotvec(aa[:, keep].reshape(-1, 3)).as_quat()
+        quat = rotvec_to_quat(aa[:, keep].reshape(-1, 3))
         quat = _continuous(quat.reshape(t, len(keep), 4))
         root_pos = j_rest[0] + tr[s] + [s * spacing, 0.0, 0.0]
         base = len(nodes) + 1  # after the sample's own node

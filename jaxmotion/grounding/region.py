@@ -33,7 +33,8 @@ __all__ = ["AdmChooser", "centre_on_object", "choose_region", "clamp_centre", "f
 @dataclass(frozen=True)
 class AdmChooser:
     """What region choice needs to run a crop-view ADM: ``get_pipe()`` returns the pipeline
-    (called only when the ADM runs), ``text`` its text condition for one text (batch of one),
+    (called only when the ADM runs), ``text`` its text condition for one text (batch of one)
+    or a function returning it (called only when the ADM runs),
     ``key()`` the ADM's PRNG key (called only when the ADM runs), ``sampler`` its
     :class:`~jaxmotion.diffusion.SamplerSpec`, ``seed`` the seed of the crops' point sampling;
     ``programs``: ``(folder, fingerprint)`` to keep the ADM's traced program on disk
@@ -75,7 +76,8 @@ def _adm_maps(adm: AdmChooser, crops) -> np.ndarray:
     args = (np.asarray(jax.random.key_data(adm.key())), np.stack([c[2] for c in rows]),
             np.stack([c[3] for c in rows]),
             jax.tree.map(lambda a: np.ascontiguousarray(
-                np.broadcast_to(a[0], (size, *a.shape[1:]))), adm.text))
+                np.broadcast_to(a[0], (size, *a.shape[1:]))),
+                adm.text() if callable(adm.text) else adm.text))
     sampler = adm.sampler
 
     def build():

@@ -19,20 +19,64 @@ the module. Presets: ``ADMConfig.tiny() / cpu() / paper()`` etc.; the CPU defaul
 2048-point crops (see :mod:`.configs`).
 """
 
-from jaxmotion.models.adm import (ADM, ADMMLP, ADMPointTransformer, adm_text_cond, make_adm,
-                                 pooled_text)
-from jaxmotion.models.amdm import AMDM
-from jaxmotion.models.configs import (PRESET_NAMES, ADMConfig, AMDMConfig, ObjectCentricConfig,
-                                      PointTransformerConfig, preset_overrides)
-from jaxmotion.models.object_centric import ObjectCentricDenoiser
-from jaxmotion.models.layers import param_count, sinusoidal_embedding
-from jaxmotion.models.point_transformer import (PointTransformerEncoder, PointTransformerUNet,
-                                                build_geometry, farthest_point_sampling, knn)
-from jaxmotion.models.segmentation import PointTransformerSeg, segmentation_loss
+#: where each public name lives: imported on first use, so that ``jaxmotion.models.weights``
+#: or one model does not import every network (and Flax, ~0.45 s) with it
+_HOMES = {
+    "ADM": "adm",
+    "ADMMLP": "adm",
+    "ADMPointTransformer": "adm",
+    "adm_text_cond": "adm",
+    "make_adm": "adm",
+    "pooled_text": "adm",
+    "AMDM": "amdm",
+    "PRESET_NAMES": "configs",
+    "ADMConfig": "configs",
+    "AMDMConfig": "configs",
+    "ObjectCentricConfig": "configs",
+    "PointTransformerConfig": "configs",
+    "preset_overrides": "configs",
+    "ObjectCentricDenoiser": "object_centric",
+    "param_count": "layers",
+    "sinusoidal_embedding": "layers",
+    "PointTransformerEncoder": "point_transformer",
+    "PointTransformerUNet": "point_transformer",
+    "build_geometry": "point_transformer",
+    "farthest_point_sampling": "point_transformer",
+    "knn": "point_transformer",
+    "PointTransformerSeg": "segmentation",
+    "segmentation_loss": "segmentation",
+}
 
 __all__ = [
-    "ADM", "ADMMLP", "ADMPointTransformer", "make_adm", "adm_text_cond", "pooled_text", "AMDM",
-    "PointTransformerSeg", "segmentation_loss", "PointTransformerEncoder", "PointTransformerUNet", "build_geometry",
-    "farthest_point_sampling", "knn", "PointTransformerConfig", "ADMConfig", "AMDMConfig",
-    "PRESET_NAMES", "preset_overrides", "ObjectCentricConfig", "ObjectCentricDenoiser", "param_count", "sinusoidal_embedding",
+    "ADM",
+    "ADMMLP",
+    "AMDM",
+    "PRESET_NAMES",
+    "ADMConfig",
+    "ADMPointTransformer",
+    "AMDMConfig",
+    "ObjectCentricConfig",
+    "ObjectCentricDenoiser",
+    "PointTransformerConfig",
+    "PointTransformerEncoder",
+    "PointTransformerSeg",
+    "PointTransformerUNet",
+    "adm_text_cond",
+    "build_geometry",
+    "farthest_point_sampling",
+    "knn",
+    "make_adm",
+    "param_count",
+    "pooled_text",
+    "preset_overrides",
+    "segmentation_loss",
+    "sinusoidal_embedding",
 ]
+
+
+def __getattr__(name):
+    if name in _HOMES:
+        import importlib
+
+        return getattr(importlib.import_module(f"jaxmotion.models.{_HOMES[name]}"), name)
+    raise AttributeError(f"module 'jaxmotion.models' has no attribute {name!r}")

@@ -45,6 +45,7 @@ from flax import nnx
 from jaxmotion.models.configs import ADMConfig
 from jaxmotion.models.layers import MLP, PerceiverLayer, TimestepEmbedder
 from jaxmotion.models.point_transformer import Norm, PointTransformerUNet
+from jaxmotion.text.condition import pooled_text
 
 __all__ = ["ADM", "ADMMLP", "ADMPointTransformer", "adm_text_cond", "make_adm", "pooled_text"]
 
@@ -55,12 +56,6 @@ def adm_text_cond(text) -> dict:
     if isinstance(text, dict):
         return {"text": text["pooled"], "text_tokens": text["tokens"], "text_mask": text["mask"]}
     return {"text": text}
-
-
-def pooled_text(text):
-    """The pooled sentence embedding ``[B, D]`` of a text condition (see
-    :func:`adm_text_cond`), which is all the AMDM reads."""
-    return text["pooled"] if isinstance(text, dict) else text
 
 
 def _inputs(cfg: ADMConfig, x, t, cond):

@@ -36,6 +36,7 @@ import jax
 import jax.numpy as jnp
 from flax import nnx
 
+from jaxmotion.constants import ACTION_CLASSES, UNKNOWN_ACTION
 from jaxmotion.models.configs import ObjectCentricConfig
 from jaxmotion.models.layers import (
     TimestepEmbedder,
@@ -50,8 +51,6 @@ __all__ = ["ACTION_CLASSES", "SENSOR_CHANNELS", "UNKNOWN_ACTION", "ObjectCentric
 
 SENSOR_CHANNELS = 7
 #: The actions an ``action_token`` model tells apart (the dataset's ``ACTIONS``), then unknown.
-ACTION_CLASSES = ("walk", "sit", "stand_up", "lie", "unknown")
-UNKNOWN_ACTION = len(ACTION_CLASSES) - 1
 N_COND = 4  # shape, text, environment sensor, target sensor
 
 

@@ -15,7 +15,6 @@ from pathlib import Path
 
 import jax
 import numpy as np
-from flax import nnx
 
 from jaxmotion._atomic import atomic_open
 
@@ -98,12 +97,14 @@ def load_weights(path) -> tuple[dict[str, np.ndarray], dict]:
     return tensors, json.loads(meta["config"])
 
 
-def apply_weights(module: nnx.Module, tensors: dict[str, np.ndarray], *, prefix: str = "",
-                  source: str = "weights") -> nnx.Module:
+def apply_weights(module, tensors: dict[str, np.ndarray], *, prefix: str = "",
+                  source: str = "weights"):
     """Load flat tensors into ``module`` in place (params and batch stats); strict on names/shapes.
 
     ``prefix`` selects a sub-tree of the file (e.g. weights saved from a wrapper module).
     """
+    from flax import nnx
+
     for kind, filt in (("params", nnx.Param), ("batch_stats", nnx.BatchStat)):
         state = nnx.state(module, filt)
         missing, bad = [], []
@@ -155,6 +156,7 @@ def abstract_module(ctor):
     given concrete placeholders here.
     """
     import jax.numpy as jnp
+    from flax import nnx
 
     module = nnx.eval_shape(ctor)
 

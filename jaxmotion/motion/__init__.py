@@ -11,16 +11,10 @@ limits (:mod:`~jaxmotion.motion.limits`) and quality metrics
 (:mod:`~jaxmotion.motion.quality`). Entry point: :func:`synthesize`.
 """
 
-from jaxmotion.motion.actions import (
-    ACTIONS,
-    MAX_FRAMES,
-    MIN_FRAMES,
-    sample_betas,
-    synthesize,
-)
-from jaxmotion.motion.character import Motion
-from jaxmotion.motion.planner import MotionError, PlanningError, build_grid, plan_path
-from jaxmotion.motion.seating import SeatUnreachable, UnsupportedTarget
+_HOMES = {"ACTIONS": "actions", "MAX_FRAMES": "actions", "MIN_FRAMES": "actions",
+          "sample_betas": "actions", "synthesize": "actions", "Motion": "character",
+          "MotionError": "planner", "PlanningError": "planner", "build_grid": "planner",
+          "plan_path": "planner", "SeatUnreachable": "seating", "UnsupportedTarget": "seating"}
 
 __all__ = [
     "ACTIONS",
@@ -36,3 +30,11 @@ __all__ = [
     "sample_betas",
     "synthesize",
 ]
+
+
+def __getattr__(name):  # imported when used: the models need only motion.representation
+    if name in _HOMES:
+        import importlib
+
+        return getattr(importlib.import_module(f"jaxmotion.motion.{_HOMES[name]}"), name)
+    raise AttributeError(f"module 'jaxmotion.motion' has no attribute {name!r}")

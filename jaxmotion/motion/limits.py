@@ -25,7 +25,6 @@ elbows, heads turned through the back), not subtle ones.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from jaxmotion.geometry.skeleton import JOINT_NAMES
 
@@ -91,6 +90,8 @@ for _name in JOINT_NAMES[1:]:
 
 def joint_angles(body_pose: np.ndarray) -> np.ndarray:
     """Euler angles (deg) ``[T,21,3]`` of an axis-angle ``body_pose`` ``[T,21,3]``."""
+    from scipy.spatial.transform import Rotation  # here: ~0.2 s to import in every generate
+
     bp = np.asarray(body_pose, np.float64)
     out = np.zeros(bp.shape)
     for j, name in enumerate(JOINT_NAMES[1:]):

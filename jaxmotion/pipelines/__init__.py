@@ -10,6 +10,12 @@ crop frame. Inference only: nothing here imports :mod:`jaxmotion.train`.
 - :mod:`.checkpoints`: the shipped checkpoints, a user's folder or workdirs, and loading them.
 """
 
-from jaxmotion.pipelines.affordance import AffordancePipeline, adm_map_one, adm_maps_one, take_text
-
 __all__ = ["AffordancePipeline", "adm_map_one", "adm_maps_one", "take_text"]
+
+
+def __getattr__(name):  # imported on first use: the object-centric pipeline needs none of it
+    if name in __all__:
+        from jaxmotion.pipelines import affordance
+
+        return getattr(affordance, name)
+    raise AttributeError(f"module 'jaxmotion.pipelines' has no attribute {name!r}")

@@ -121,7 +121,7 @@ def sample_in_room(room, centre, text: str, action, opts, files, root, aot_dir, 
         grounded target, as for the other pipelines); text: the instruction; action: its action
         (``Instruction.action``, picks the checkpoint, :func:`choose_cvae`).
       opts: :class:`~jaxmotion.options.GenerateOptions` (samples, seed); files: the cVAE
-        weights files; root: the run's PRNG key (its second split samples, as the other
+        weights files; root: the run's PRNG key data (its second split samples, as the other
         pipelines'); aot_dir, versions: the compiled-program cache.
     Returns:
       ``(joints [K, T, 22, 3], (crop point indices, rotation, shift))``.
@@ -143,7 +143,7 @@ def sample_in_room(room, centre, text: str, action, opts, files, root, aot_dir, 
     words = embed_one(text, enable_compilation_cache() / "text-embeddings",
                       int(run_cfg["model"]["text_tokens"]))
     k = opts.samples
-    args = (np.asarray(jax.random.key_data(root)), pts[None].astype(np.float32),
+    args = (np.asarray(root), pts[None].astype(np.float32),
             model_colors(room.rgb[pick])[None].astype(np.float32),
             np.asarray(words["tokens"], np.float32), np.asarray(words["mask"], bool),
             np.zeros((1, 10), np.float32), np.ones((1, frames), bool))

@@ -25,17 +25,16 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
-from flax import nnx
 
-from jaxmotion.constants import PASSABLE, SCENE_FPS
+from jaxmotion.constants import ACTION_CLASSES, PASSABLE, SCENE_FPS, UNKNOWN_ACTION
 from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.rotations import matrix_to_rotation_6d
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
-from jaxmotion.models.object_centric import ACTION_CLASSES, UNKNOWN_ACTION
 from jaxmotion.motion.representation import (
     TRAJECTORY_DIM,
     motion_to_joints,
@@ -104,6 +103,8 @@ def _tensor(tensors, name, src):
 
 
 def _load_denoiser(path, kind: str):
+    from flax import nnx
+
     from jaxmotion.config import config_from_dict
     from jaxmotion.diffusion import make_schedule
     from jaxmotion.models import ObjectCentricConfig, ObjectCentricDenoiser
@@ -126,8 +127,8 @@ def _load_denoiser(path, kind: str):
 class ObjectCentricPipeline:
     """The trajectory and completion denoisers with their schedules and statistics."""
 
-    trajectory: nnx.Module
-    completion: nnx.Module
+    trajectory: Any  # flax.nnx.Module
+    completion: Any
     traj_schedule: object
     comp_schedule: object
     traj_stats: tuple
@@ -344,7 +345,8 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
       text_emb: the sentence embedding ``[1, 384]`` (or a token-state dict; its pooled part).
       opts: :class:`~jaxmotion.options.GenerateOptions` (samples, seed, steps, guidance[1],
         motion_candidates); files: ``(trajectory, completion)`` weights files.
-      root: the run's PRNG key (its second split samples, as the affordance pipeline's);
+      root: the run's PRNG key data ``uint32[2]`` (its second split samples, as the
+        affordance pipeline's);
       aot_dir, versions: the compiled-program cache (:func:`jaxmotion.compiled.cached_call`).
       action: the action the instruction asks for (``Instruction.action``; None: unknown).
     Returns:
@@ -358,8 +360,8 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     from jaxmotion.compiled import cached_call, digest
     from jaxmotion.data.crop import crop_spec_from_config, generate_crop
     from jaxmotion.errors import GenerateError
-    from jaxmotion.models.adm import pooled_text
     from jaxmotion.models.weights import read_config
+    from jaxmotion.text.condition import pooled_text
 
     run_cfg = read_config(files[1])
     spec, frames = crop_spec_from_config(run_cfg), int(run_cfg["max_frames"])
@@ -373,7 +375,7 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     normals = (np.asarray(room.normal[pick], np.float32) @ rot.T).astype(np.float32)
     avoid = furniture_mask(pts, room.instance[pick], room.objects, on_target, action)
     betas = np.zeros((k, 10), np.float32)
-    args = (np.asarray(jax.random.key_data(root)), tile(pts), tile(normals), tile(on_target),
+    args = (np.asarray(root), tile(pts), tile(normals), tile(on_target),
             tile(np.asarray(pooled_text(text_emb), np.float32)[0]), betas,
             np.ones((k, frames), bool), np.full(k, anchor_first),
             np.full(k, action_index(action), np.int32), tile(avoid),

@@ -200,7 +200,6 @@ def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=N
     import warnings
 
     from jaxmotion.planning.steps import is_story
-    from jaxmotion.planning.story import story_generation
 
     if plan is not None and trajectory is not None:
         raise GenerateError("give a plan (a story) or a trajectory (a path to follow), not both")
@@ -215,6 +214,8 @@ def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=N
                       stacklevel=3)
     if trajectory is not None:
         return control_generation(scene, text, trajectory, opts, progress)
+    from jaxmotion.planning.story import story_generation
+
     if plan is not None:
         return story_generation(scene, plan, opts, progress)
     from jaxmotion._jax_setup import enable_compilation_cache

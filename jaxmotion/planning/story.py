@@ -282,8 +282,7 @@ class Teller:
     def embed(self, sentence: str) -> np.ndarray:
         """The pooled sentence embedding the models read, ``[text_dim]`` (cached)."""
         from jaxmotion._jax_setup import enable_compilation_cache
-        from jaxmotion.models.adm import pooled_text
-        from jaxmotion.text.condition import embed_one
+        from jaxmotion.text.condition import embed_one, pooled_text
 
         if sentence not in self._emb:
             emb = embed_one(sentence, enable_compilation_cache() / "text-embeddings")

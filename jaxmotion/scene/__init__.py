@@ -6,16 +6,6 @@ rooms; :mod:`~jaxmotion.scene.graph` holds Sr3D spatial relations and
 :mod:`~jaxmotion.scene.instructions` writes referring instructions from them.
 """
 
-from jaxmotion.scene.io import (
-    DEFAULT_MESH_POINTS,
-    SUPPORTED_EXTENSIONS,
-    Scene,
-    SceneError,
-    load_scene,
-    load_scene_and_notes,
-    save_scene,
-    scene_to_trimesh_points,
-)
 from jaxmotion.scene.furniture import CATEGORY_IDS, LIE_CATEGORIES, NYU40_ID, SEAT_CATEGORIES
 from jaxmotion.scene.graph import Reference, Relation, SceneGraph
 from jaxmotion.scene.instructions import (
@@ -26,6 +16,16 @@ from jaxmotion.scene.instructions import (
     sample_instruction,
     sample_task,
     simple_text,
+)
+from jaxmotion.scene.io import (
+    DEFAULT_MESH_POINTS,
+    SUPPORTED_EXTENSIONS,
+    Scene,
+    SceneError,
+    load_scene,
+    load_scene_and_notes,
+    save_scene,
+    scene_to_trimesh_points,
 )
 from jaxmotion.scene.rooms import (
     ROOM_KINDS,

@@ -18,8 +18,21 @@ import dataclasses
 
 import numpy as np
 
-from jaxmotion.scene._parts import (BRIGHT, CERAMIC, FABRIC, LAMINATE, METAL, WOOD, Part,
-                                    bounds, leg_set, moved, part, shade, tone)
+from jaxmotion.scene._parts import (
+    BRIGHT,
+    CERAMIC,
+    FABRIC,
+    LAMINATE,
+    METAL,
+    WOOD,
+    Part,
+    bounds,
+    leg_set,
+    moved,
+    part,
+    shade,
+    tone,
+)
 
 CATEGORY_IDS = {
     "wall": 1, "floor": 2, "cabinet": 3, "bed": 4, "chair": 5, "sofa": 6, "table": 7,

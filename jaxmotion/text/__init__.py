@@ -15,9 +15,15 @@ from __future__ import annotations
 
 import threading
 
-from jaxmotion.text.cache import (EmbeddingCache, TokenCache, cache_key, dataset_cache_dir,
-                                  encode_cached, pad_tokens)
-from jaxmotion.text.minilm import PIP_COMMAND, MiniLM, TextEncoder, load_minilm, minilm_dir
+from jaxmotion.text.cache import (
+    EmbeddingCache,
+    TokenCache,
+    cache_key,
+    dataset_cache_dir,
+    encode_cached,
+    pad_tokens,
+)
+from jaxmotion.text.minilm import PIP_COMMAND, TextEncoder, load_minilm, minilm_dir
 
 __all__ = [
     "ENCODERS",
@@ -53,3 +59,11 @@ def load_text_encoder(name: str = "minilm") -> TextEncoder:
         if key not in _loaded:
             _loaded[key] = ENCODERS[key]()
         return _loaded[key]
+
+
+def __getattr__(name):  # the Flax network only when asked for (importing Flax costs ~0.45 s)
+    if name == "MiniLM":
+        from jaxmotion.text.bert import MiniLM
+
+        return MiniLM
+    raise AttributeError(f"module 'jaxmotion.text' has no attribute {name!r}")

@@ -18,7 +18,7 @@ import numpy as np
 from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.errors import GenerateError
 
-__all__ = ["check_text", "embed_one", "text_encoder"]
+__all__ = ["check_text", "embed_one", "pooled_text", "text_encoder"]
 
 
 @functools.lru_cache(maxsize=1)
@@ -140,3 +140,10 @@ def embed_one(text: str, cache_dir: Path | None, text_tokens: int = 0):
         return emb
     tokens, mask = pad_tokens([states], int(text_tokens), emb.shape[1])
     return {"pooled": emb, "tokens": tokens, "mask": mask}
+
+
+def pooled_text(text):
+    """The pooled sentence embedding ``[B, D]`` of a text condition (an array, or the
+    word-level mapping ``{"pooled", "tokens", "mask"}``), which is all the AMDM and the
+    object-centric models read."""
+    return text["pooled"] if isinstance(text, dict) else text

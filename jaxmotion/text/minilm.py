@@ -1,4 +1,6 @@
-"""all-MiniLM-L6-v2 (sentence-transformers) as a Flax NNX BERT encoder.
+"""all-MiniLM-L6-v2 (sentence-transformers) as a sentence encoder: tokenisation, the encoder
+(:class:`TextEncoder`, over the Flax NNX network of :mod:`jaxmotion.text.bert`) and the cached
+one-sentence program (:func:`encode_one_cached`, which needs no Flax once traced).
 
 The model is a 6-layer BERT (hidden 384, 12 heads, FF 1536, exact-erf GELU,
 post-LayerNorm with eps 1e-12, learned absolute positions, token types).
@@ -29,7 +31,6 @@ cannot change a result beyond float rounding: padded keys get an additive
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import hashlib
 import importlib.util
@@ -40,16 +41,17 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import nnx
+
+from jaxmotion.text.bert_config import BertConfig, hf_parameter_names
 
 __all__ = [
     "LENGTH_BUCKETS",
     "PACKAGE",
     "PIP_COMMAND",
     "BertConfig",
-    "MiniLM",
     "TextEncoder",
     "encode_one_cached",
+    "hf_parameter_names",
     "load_minilm",
     "minilm_dir",
 ]
@@ -96,182 +98,6 @@ def minilm_dir() -> Path:
     return folder
 
 
-@dataclasses.dataclass(frozen=True)
-class BertConfig:
-    """BERT sizes; the defaults are all-MiniLM-L6-v2's ``config.json``."""
-
-    vocab_size: int = 30522
-    hidden: int = 384
-    layers: int = 6
-    heads: int = 12
-    intermediate: int = 1536
-    max_positions: int = 512
-    type_vocab: int = 2
-    eps: float = 1e-12
-
-    @classmethod
-    def from_hf(cls, path) -> BertConfig:
-        c = json.loads(Path(path).read_text())
-        if (
-            c.get("hidden_act", "gelu") != "gelu"
-            or c.get("position_embedding_type", "absolute") != "absolute"
-        ):
-            raise ValueError(f"unsupported BERT variant in {path}")
-        return cls(
-            vocab_size=c["vocab_size"],
-            hidden=c["hidden_size"],
-            layers=c["num_hidden_layers"],
-            heads=c["num_attention_heads"],
-            intermediate=c["intermediate_size"],
-            max_positions=c["max_position_embeddings"],
-            type_vocab=c["type_vocab_size"],
-            eps=c["layer_norm_eps"],
-        )
-
-
-# Full float32 matmuls also on accelerators (TF32 would cost the 1e-4 cosine budget).
-_PREC = jax.lax.Precision.HIGHEST
-
-
-def _linear(i, o, rngs):
-    return nnx.Linear(i, o, precision=_PREC, rngs=rngs)
-
-
-class BertLayer(nnx.Module):
-    """Post-LN transformer block: x = LN(x + Attn(x)); x = LN(x + FF(x))."""
-
-    def __init__(self, cfg: BertConfig, *, rngs: nnx.Rngs):
-        d = cfg.hidden
-        self.heads = cfg.heads
-        self.query = _linear(d, d, rngs)
-        self.key = _linear(d, d, rngs)
-        self.value = _linear(d, d, rngs)
-        self.attn_out = _linear(d, d, rngs)
-        self.attn_norm = nnx.LayerNorm(d, epsilon=cfg.eps, rngs=rngs)
-        self.ff_in = _linear(d, cfg.intermediate, rngs)
-        self.ff_out = _linear(cfg.intermediate, d, rngs)
-        self.ff_norm = nnx.LayerNorm(d, epsilon=cfg.eps, rngs=rngs)
-
-    def __call__(self, x, bias):
-        """x [B, T, D], bias [B, 1, 1, T] additive attention mask → [B, T, D]."""
-        b, t, d = x.shape
-        h = self.heads
-
-        def split(y):  # [B, T, D] -> [B, H, T, D/H]
-            return y.reshape(b, t, h, d // h).transpose(0, 2, 1, 3)
-
-        q, k, v = split(self.query(x)), split(self.key(x)), split(self.value(x))
-        logits = jnp.einsum("bhqd,bhkd->bhqk", q, k, precision=_PREC) / np.sqrt(d // h)
-        weights = jax.nn.softmax(logits + bias, axis=-1)
-        ctx = jnp.einsum("bhqk,bhkd->bhqd", weights, v, precision=_PREC)
-        ctx = ctx.transpose(0, 2, 1, 3).reshape(b, t, d)
-        x = self.attn_norm(x + self.attn_out(ctx))
-        ff = self.ff_out(jax.nn.gelu(self.ff_in(x), approximate=False))
-        return self.ff_norm(x + ff)
-
-
-class MiniLM(nnx.Module):
-    """BERT encoder + masked mean pooling + L2 normalisation (sentence-transformers)."""
-
-    def __init__(self, cfg: BertConfig = BertConfig(), *, rngs: nnx.Rngs):
-        self.cfg = cfg
-        self.word = nnx.Embed(cfg.vocab_size, cfg.hidden, rngs=rngs)
-        self.position = nnx.Embed(cfg.max_positions, cfg.hidden, rngs=rngs)
-        self.token_type = nnx.Embed(cfg.type_vocab, cfg.hidden, rngs=rngs)
-        self.embed_norm = nnx.LayerNorm(cfg.hidden, epsilon=cfg.eps, rngs=rngs)
-        self.layers = nnx.List([BertLayer(cfg, rngs=rngs) for _ in range(cfg.layers)])
-
-    def hidden_states(self, ids, mask):
-        """ids [B, T] int32, mask [B, T] (1 real, 0 padding) → last hidden states [B, T, D]."""
-        t = ids.shape[1]
-        # Single-sentence inputs: token type 0 everywhere, positions 0..T-1.
-        x = self.word(ids) + self.position(jnp.arange(t))[None] + self.token_type.embedding[0]
-        x = self.embed_norm(x)
-        # HF BERT adds finfo(float32).min at padded keys: exp() of it is exactly 0.
-        bias = jnp.where(mask[:, None, None, :] > 0, 0.0, jnp.finfo(jnp.float32).min)
-        for layer in self.layers:
-            x = layer(x, bias)
-        return x
-
-    def __call__(self, ids, mask):
-        """ids [B, T] int32, mask [B, T] → unit-norm sentence embeddings [B, D] float32."""
-        x = self.hidden_states(ids, mask)
-        m = mask.astype(x.dtype)[..., None]
-        mean = (x * m).sum(1) / jnp.maximum(m.sum(1), 1e-9)
-        norm = jnp.linalg.norm(mean, axis=-1, keepdims=True)
-        return mean / jnp.maximum(norm, 1e-12)  # torch.nn.functional.normalize
-
-
-def _hf_names(cfg: BertConfig) -> dict[tuple, tuple[str, bool]]:
-    """Map NNX parameter paths to (safetensors name, transpose?)."""
-    names = {
-        ("word", "embedding"): ("embeddings.word_embeddings.weight", False),
-        ("position", "embedding"): ("embeddings.position_embeddings.weight", False),
-        ("token_type", "embedding"): ("embeddings.token_type_embeddings.weight", False),
-        ("embed_norm", "scale"): ("embeddings.LayerNorm.weight", False),
-        ("embed_norm", "bias"): ("embeddings.LayerNorm.bias", False),
-    }
-    parts = {
-        "query": "attention.self.query",
-        "key": "attention.self.key",
-        "value": "attention.self.value",
-        "attn_out": "attention.output.dense",
-        "ff_in": "intermediate.dense",
-        "ff_out": "output.dense",
-    }
-    norms = {"attn_norm": "attention.output.LayerNorm", "ff_norm": "output.LayerNorm"}
-    for i in range(cfg.layers):
-        pre = f"encoder.layer.{i}."
-        for ours, hf in parts.items():
-            # torch Linear stores weight as [out, in]; NNX kernel is [in, out].
-            names[("layers", i, ours, "kernel")] = (pre + hf + ".weight", True)
-            names[("layers", i, ours, "bias")] = (pre + hf + ".bias", False)
-        for ours, hf in norms.items():
-            names[("layers", i, ours, "scale")] = (pre + hf + ".weight", False)
-            names[("layers", i, ours, "bias")] = (pre + hf + ".bias", False)
-    return names
-
-
-# Present in the checkpoint but unused by mean pooling (or buffers, not weights).
-_UNUSED = ("embeddings.position_ids", "pooler.dense.weight", "pooler.dense.bias")
-
-
-def load_minilm_weights(folder) -> MiniLM:
-    """Build :class:`MiniLM` from ``folder``'s config.json and model.safetensors.
-
-    Every parameter must be found with the right shape and every tensor of the
-    file must be used (except the pooler and buffers), else ValueError.
-    """
-    from safetensors.numpy import load_file
-
-    folder = Path(folder)
-    cfg = BertConfig.from_hf(folder / "config.json")
-    tensors = load_file(str(folder / "model.safetensors"))
-    # Build only shapes (no random init of 12M parameters), then fill them in.
-    model = nnx.eval_shape(lambda: MiniLM(cfg, rngs=nnx.Rngs(0)))
-    graphdef, state = nnx.split(model)
-    flat = dict(nnx.to_flat_state(state))
-    names = _hf_names(cfg)
-    if set(flat) != set(names):
-        raise AssertionError(f"parameter map out of date: {set(flat) ^ set(names)}")
-    used = set()
-    for path, var in flat.items():
-        hf, transpose = names[path]
-        if hf not in tensors:
-            raise ValueError(f"{folder}/model.safetensors has no tensor {hf!r}")
-        arr = np.asarray(tensors[hf], np.float32)
-        arr = arr.T if transpose else arr
-        want = tuple(var.get_value().shape)
-        if arr.shape != want:
-            raise ValueError(f"{hf}: shape {arr.shape}, expected {want}")
-        var.set_value(jnp.asarray(arr))
-        used.add(hf)
-    left = set(tensors) - used - set(_UNUSED)
-    if left:
-        raise ValueError(f"unexpected tensors in {folder}/model.safetensors: {sorted(left)}")
-    return nnx.merge(graphdef, nnx.from_flat_state(flat))
-
-
 def _next_pow2(n: int) -> int:
     return 1 << max(0, (n - 1).bit_length())
 
@@ -285,7 +111,7 @@ class TextEncoder:
     embedding cache keys on it).
     """
 
-    def __init__(self, name, model: MiniLM, tokenizer, *, max_length, weights_path, batch_size=64):
+    def __init__(self, name, model, tokenizer, *, max_length, weights_path, batch_size=64):
         self.name = name
         self.dim = model.cfg.hidden
         self.max_length = int(max_length)
@@ -293,6 +119,8 @@ class TextEncoder:
         self.weights_path = Path(weights_path)
         self._checksum = None
         self._tokenizer = tokenizer
+        from flax import nnx
+
         graphdef, state = nnx.split(model)
         # Frozen: the weights are a constant pytree; stop_gradient makes that explicit.
         self._state = jax.tree.map(jax.lax.stop_gradient, state)
@@ -415,6 +243,8 @@ def load_minilm(folder=None, *, batch_size: int = 64) -> TextEncoder:
     from tokenizers import Tokenizer
 
     folder = Path(folder) if folder is not None else minilm_dir()
+    from jaxmotion.text.bert import load_minilm_weights  # the Flax network, when built
+
     model = load_minilm_weights(folder)
     max_length = max_seq_length(folder)
     tok = Tokenizer.from_file(str(folder / "tokenizer.json"))
@@ -436,7 +266,7 @@ def _canonical_order(cfg: BertConfig) -> list[tuple[tuple, str, bool]]:
     """``(path, safetensors name, transpose)`` in the order ``jax.tree.flatten`` visits the
     model's state (sorted keys at every level); checked against the real state when the
     program is traced (:func:`encode_one_cached`)."""
-    return [(p, *v) for p, v in sorted(_hf_names(cfg).items())]
+    return [(p, *v) for p, v in sorted(hf_parameter_names(cfg).items())]
 
 
 def encode_one_cached(text: str, cache_dir, *, tokens: bool = False, folder=None) -> np.ndarray:

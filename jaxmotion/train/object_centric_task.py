@@ -162,7 +162,7 @@ class ObjectCentricTask(DataTask):
         cond = {"text": batch["text_emb"], "betas": batch["betas"], "env_sensor": env,
                 "target_sensor": tgt, "mask": mask, "drop_text": drop_t, "drop_scene": drop_s}
         if cfg.action_token:  # the dataset's label, sometimes withheld (as unread text is)
-            from jaxmotion.models.object_centric import UNKNOWN_ACTION
+            from jaxmotion.constants import UNKNOWN_ACTION
 
             hide = jax.random.uniform(k_act, (b,)) < (self.action_unknown if train else 0.0)
             cond["action"] = jnp.where(hide, UNKNOWN_ACTION, jnp.asarray(batch["action"],

@@ -187,10 +187,9 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         centre = centre_on_object(target_obj, lo, hi, spec.size)
         chosen, how = int(opts.object_id), "object_id"
     else:
-        chooser = AdmChooser(get_text_pipe, text_emb, lambda: stage_key(0), adm_sampler,
-                             opts.seed,
+        chooser = AdmChooser(get_text_pipe, text_emb, lambda: root, adm_sampler, opts.seed,
                              None if aot_dir is None else
-                             (aot_dir, digest(versions, adm_sampler, models.text_adm)))
+                             (aot_dir, digest(versions, adm_sampler, models.text_adm)), split=0)
         centre, chosen, how = find_region(room, instruction, opts.grounding, spec, view=view,
                                           adm=chooser)
         if not models.room_view:

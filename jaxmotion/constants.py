@@ -15,7 +15,7 @@
 from __future__ import annotations
 
 __all__ = ["ACTION_CLASSES", "AFFORDANCE_JOINTS", "AFFORDANCE_SIGMA", "FOOT_JOINTS", "NUM_JOINTS",
-           "PASSABLE", "SCENE_FPS", "TEXT_ENCODER", "UNKNOWN_ACTION"]
+           "PASSABLE", "SCENE_FPS", "STRUCTURE", "TEXT_ENCODER", "UNKNOWN_ACTION"]
 
 SCENE_FPS: float = 30.0
 NUM_JOINTS: int = 22
@@ -28,3 +28,5 @@ PASSABLE: tuple[str, ...] = ("door", "window", "picture", "curtain", "rug")
 #: "unknown" (the instruction named none of the four).
 ACTION_CLASSES: tuple[str, ...] = ("walk", "sit", "stand_up", "lie", "unknown")
 UNKNOWN_ACTION: int = len(ACTION_CLASSES) - 1
+#: A room's own surfaces: labelled in scans, never objects (targets, furniture) themselves.
+STRUCTURE: tuple[str, ...] = ("wall", "floor", "ceiling")

@@ -203,11 +203,11 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         joints, crop = cvae.sample_in_room(room, centre, text, instruction.action, opts,
                                            models.files, root, aot_dir, versions)
     elif pipeline == "object-centric":  # sensors around the target
-        from jaxmotion.pipelines.object_centric import sample_in_room
+        from jaxmotion.pipelines.object_centric import peak_walk, sample_in_room
 
         joints, crop, exact = sample_in_room(room, centre, chosen, instruction.anchor_first,
                                              emb, opts, models.files, root, aot_dir, versions,
-                                             instruction.action)
+                                             instruction.action or peak_walk(how))
     if pipeline != "affordance":
         aff, excluded, n_cand, n_mot = (np.zeros((k, len(crop[0]), 6), np.float32), (), 0,
                                         1 if pipeline == "cvae" else opts.motion_candidates)

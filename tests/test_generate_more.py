@@ -191,8 +191,13 @@ def test_text_only_adm_when_no_target_is_known(ckpt, tmp_path, monkeypatch):
 
 def test_the_default_pipeline_is_object_centric_when_the_target_is_known(ckpt, tmp_path):
     """``pipeline="auto"`` (the default): the object-centric models sample when the text's
-    target is found, the affordance pipeline when no target is (here a text with no object)."""
+    target is found, or when the text names no object and the ADM's strongest tile holds one
+    (a walk to it when no action is understood either); the affordance pipeline when no
+    target is (a scene without objects)."""
+    import dataclasses
+
     from jaxmotion.options import GenerateOptions
+    from jaxmotion.scene.demo import load_scene_arg
 
     assert GenerateOptions().pipeline == "auto"
     kw = dict(checkpoints=ckpt, steps=2, adm_steps=2, fit=False, aot=False)
@@ -201,6 +206,13 @@ def test_the_default_pipeline_is_object_centric_when_the_target_is_known(ckpt, t
     assert json.loads(jaxmotion.export.summary(r))["pipeline"] == "object-centric"
     assert np.isfinite(r.joints).all() and r.joints.shape == (1, 120, 22, 3)
     r = jaxmotion.generate("demo", "dance around for a while", **kw)
+    assert r.pipeline == "object-centric" and r.grounding == "adm peak"
+    assert r.target_id in {int(o["id"]) for o in r.scene.objects}
+    assert any("a walk to" in n for n in r.understanding.notes)
+    room = load_scene_arg("demo", 20000)
+    bare = dataclasses.replace(room, instance=np.full(room.num_points, -1, np.int32),
+                               semantic=np.full(room.num_points, -1, np.int32), objects=())
+    r = jaxmotion.generate(bare, "dance around for a while", **kw)
     assert r.pipeline == "affordance" and r.target_id is None
     with pytest.raises(GenerateError, match="needs a target object"):
-        jaxmotion.generate("demo", "dance around for a while", pipeline="object-centric", **kw)
+        jaxmotion.generate(bare, "dance around for a while", pipeline="object-centric", **kw)

@@ -15,12 +15,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from jaxmotion.constants import PASSABLE
+from jaxmotion.constants import PASSABLE, STRUCTURE
 
 __all__ = ["IGNORED", "furniture_frames"]
 
 #: Categories never counted: passable objects and the room's own surfaces.
-IGNORED = (*PASSABLE, "floor", "wall", "ceiling")
+IGNORED = (*PASSABLE, *STRUCTURE)
 
 
 def furniture_frames(joints, objects, exclude=(), mask=None, margin: float = 0.05) -> np.ndarray:

@@ -555,6 +555,7 @@ def evaluate(
                 ObjectCentricPipeline,
                 action_index,
                 furniture_mask,
+                keeps_out_of_target,
             )
             from jaxmotion.text.condition import pooled_text
 
@@ -592,7 +593,8 @@ def evaluate(
                                              else "target_mask"] for i in idx])
                     acts = [read_instruction(cases[i]["text"]).action for i in idx]
                     avoid = np.stack([furniture_mask(cases[i]["points"], cases[i]["instance"],
-                                                     cases[i]["objects"], t, a)
+                                                     cases[i]["objects"], t,
+                                                     target_too=keeps_out_of_target(a))
                                       for i, t, a in zip(idx, target, acts)])
                     res = jax.device_get(objects.sample(
                         jax.random.fold_in(key, start), x["points"], x["normals"], target,

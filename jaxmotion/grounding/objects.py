@@ -12,6 +12,7 @@ import re
 
 import numpy as np
 
+from jaxmotion.constants import STRUCTURE
 from jaxmotion.errors import GenerateError
 
 __all__ = ["find_object", "mentioned_objects", "object_table", "same_class_others"]
@@ -32,7 +33,6 @@ def find_object(room, object_id) -> dict:
     raise GenerateError(f"unknown object id {object_id}; this scene's objects: {valid}")
 
 
-_STRUCTURE = {"wall", "floor", "ceiling"}
 _ALIASES = {"refrigerator": "fridge", "television": "tv", "night stand": "nightstand",
             "couch": "sofa", "bookcase": "bookshelf", "settee": "sofa", "bathroom sink": "sink"}
 
@@ -55,7 +55,7 @@ def object_table(room) -> tuple[dict, ...]:
         sem = room.semantic[sel]
         sem = sem[sem >= 0]
         cat = names.get(int(np.bincount(sem).argmax()), "object") if len(sem) else "object"
-        if cat in _STRUCTURE:
+        if cat in STRUCTURE:
             continue
         pts = room.xyz[sel]
         out.append({"id": int(inst), "category": cat, "bbox_min": pts.min(0).tolist(),

@@ -27,7 +27,7 @@ from jaxmotion.errors import GenerateError
 from jaxmotion.grounding.target import ground_candidates
 
 __all__ = ["AdmChooser", "centre_on_object", "choose_region", "clamp_centre", "find_region",
-           "lit", "region_from_view", "room_view_maps", "tile_centres"]
+           "lit", "peak_object", "region_from_view", "room_view_maps", "tile_centres"]
 
 
 @dataclass(frozen=True)
@@ -155,7 +155,9 @@ def choose_region(adm: AdmChooser, room, candidates, spec, lo, hi):
       is run on a crop centred on each and the one whose points it lights up most (mean over
       its points of the strongest channel) wins;
     - otherwise the room is tiled with half-overlapping squares and the tile holding the
-      strongest pelvis-affordance peak (mean of its 32 strongest points) wins.
+      strongest pelvis-affordance peak (mean of its 32 strongest points) wins; the target is
+      the object of the room's table that the map lights most there (as among candidates),
+      the square centred on it; None (and the tile's centre) when the tile holds no object.
     ``lo``, ``hi``: the room's xy bounds. Returns ``(centre, chosen object id or None)``.
     """
     if candidates:
@@ -174,7 +176,25 @@ def choose_region(adm: AdmChooser, room, candidates, spec, lo, hi):
     crops = _crops(room, tiles, spec, adm.seed, 3)
     maps = _adm_maps(adm, crops)
     scores = [float(np.sort(a[:, 0])[-32:].mean()) for a in maps]
-    return np.asarray(tiles[crops[int(np.argmax(scores))][0]]), None
+    best = int(np.argmax(scores))
+    (i, pick, *_), a = crops[best], maps[best]
+    target = peak_object(room, room.instance[pick], a)
+    if target is None:
+        return np.asarray(tiles[i]), None
+    return centre_on_object(target, lo, hi, spec.size), int(target["id"])
+
+
+def peak_object(room, instance, maps):
+    """The object of ``room``'s table (:func:`~jaxmotion.grounding.objects.object_table`) that
+    ``maps [N,6]`` light most (:func:`lit`) among those with points in the crop (``instance
+    [N]``: the crop points' ids), or None when no object is there or none is lit."""
+    from jaxmotion.grounding.objects import object_table
+
+    present = set(np.unique(instance).tolist())
+    scored = [(lit(maps, instance, int(o["id"])), o) for o in object_table(room)
+              if int(o["id"]) in present]
+    scored = [(s, o) for s, o in scored if s > 0.0]
+    return max(scored, key=lambda so: so[0])[1] if scored else None
 
 
 def room_view_maps(room, adm_cfg, emb, key, sampler, k: int, seed: int, aot_dir, fingerprint,

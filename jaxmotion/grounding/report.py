@@ -88,9 +88,11 @@ def explain(room, instruction, chosen, how: str, options=None, *, echo: bool = F
     warns: list[str] = []
     action_from = ""
     if ins.action is None:
+        done = ("with no object named either, it is done as a walk to the object the ADM's map "
+                "lights most" if how == "adm peak" and chosen is not None else
+                "the text goes to them as written, so expect one of those")
         warns.append(f"could not tell which action {ins.text!r} asks for: jaxmotion's models "
-                     f"{_ACTIONS}; the text goes to them as written, so expect one of those "
-                     "(say e.g. 'walk to the door' or 'sit on the chair')")
+                     f"{_ACTIONS}; {done} (say e.g. 'walk to the door' or 'sit on the chair')")
     else:
         action_from = {"words": f"the words '{r.action_words}'",
                        "object": f"'{r.action_words}' with a {r.target or 'seat'}",
@@ -133,6 +135,8 @@ def explain(room, instruction, chosen, how: str, options=None, *, echo: bool = F
                          + (f" or name a relation: {hint}" if hint else ""))
         else:
             notes.append(f"target: {target} ({_how(how, found, r)})")
+            if how == "adm peak" and ins.action is None:
+                notes.append(f"action: a walk to {target} (none understood, no object named)")
     if warn:
         for w in warns:
             warnings.warn(w, UserWarning, stacklevel=3)
@@ -156,6 +160,8 @@ def _how(how: str, found, r) -> str:
         "action": "the only object here the action takes",
         "similarity": "the class nearest the text's words by meaning",
         "object_id": "given by --object (object_id)",
+        "adm peak": "the text names no object of this room: the object the ADM's map lights most "
+                    "where it is strongest",
     }.get(how, how)
 
 

@@ -50,7 +50,9 @@ __all__ = [
     "action_index",
     "crop_sensors",
     "furniture_mask",
+    "keeps_out_of_target",
     "load_object_pipeline",
+    "peak_walk",
     "sample_in_room",
     "trajectory_sensors",
 ]
@@ -302,17 +304,23 @@ class ObjectCentricPipeline:
         return {"joints": joints[jnp.arange(b), best], "motion": motion[jnp.arange(b), best]}
 
 
-def furniture_mask(points, instance, objects, target_mask, action=None):
+def furniture_mask(points, instance, objects, target_mask, *, target_too: bool = False):
     """The crop points ``[N]`` a body keeps out of, for choosing among candidate motions: the
     points above 0.1 m of the room's objects (``objects``: object-table rows; ``instance
     [N]`` the points' ids) that are not :data:`~jaxmotion.constants.PASSABLE`, the target's
-    (``target_mask [N]``) aside unless the ``action`` is a walk (which stops in front of it)."""
+    (``target_mask [N]``) aside unless ``target_too`` (:func:`keeps_out_of_target`)."""
     import numpy as np
 
     solid = [o["id"] for o in objects if o["category"] not in PASSABLE]
-    keep_target = action == "walk"
     return (np.isin(instance, solid) & (np.asarray(points)[:, 2] > 0.1)
-            & (~np.asarray(target_mask, bool) | keep_target))
+            & (~np.asarray(target_mask, bool) | bool(target_too)))
+
+
+def keeps_out_of_target(action) -> bool:
+    """Whether a body doing ``action`` keeps out of its target too: a walk stops in front of
+    it, and an action the instruction does not name (None) is not let into it either; a sit,
+    a stand-up and a lie touch it."""
+    return action in ("walk", None)
 
 
 @functools.lru_cache(maxsize=4)
@@ -326,6 +334,13 @@ def load_object_pipeline(trajectory: str, completion: str) -> ObjectCentricPipel
     except (KeyError, ValueError) as e:
         raise GenerateError(f"checkpoints {trajectory} and {completion} do not load together: "
                             f"{e}") from e
+
+
+def peak_walk(how: str):
+    """The action sampled when the instruction names none (``Instruction.action`` None): a walk
+    to the target when the text named no object either (``how`` ``"adm peak"``: the target is
+    where the ADM's map is strongest), else None (the models read the text as written)."""
+    return "walk" if how == "adm peak" else None
 
 
 def action_index(action) -> int:
@@ -373,7 +388,8 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     k = opts.samples
     tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))
     normals = (np.asarray(room.normal[pick], np.float32) @ rot.T).astype(np.float32)
-    avoid = furniture_mask(pts, room.instance[pick], room.objects, on_target, action)
+    avoid = furniture_mask(pts, room.instance[pick], room.objects, on_target,
+                           target_too=keeps_out_of_target(action))
     betas = np.zeros((k, 10), np.float32)
     args = (np.asarray(root), tile(pts), tile(normals), tile(on_target),
             tile(np.asarray(pooled_text(text_emb), np.float32)[0]), betas,

@@ -112,11 +112,11 @@ def ground_trajectory(xy, *, height: float, fps: float = 30.0,
 def _head_for(scene, end) -> int:
     """The object a path ends at (its points nearest the last point, walls and floors aside):
     the completion model's target sensor reads it, as in the walks it learned; -1: none."""
-    from jaxmotion.constants import PASSABLE
+    from jaxmotion.constants import PASSABLE, STRUCTURE
 
     best, oid = np.inf, -1
     for o in scene.objects:
-        if o["category"] in PASSABLE or o["category"] in ("floor", "wall", "ceiling"):
+        if o["category"] in PASSABLE or o["category"] in STRUCTURE:
             continue
         pts = scene.xyz[scene.instance == o["id"], :2]
         if len(pts):

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxmotion.constants import STRUCTURE
 from jaxmotion.errors import SceneError
 from jaxmotion.scene.furniture import CATEGORY_IDS
 from jaxmotion.scene.meshes import (
@@ -58,7 +59,6 @@ NYU40_CLASSES = (
     "shower curtain", "box", "whiteboard", "person", "nightstand", "toilet", "sink", "lamp",
     "bathtub", "bag", "otherstructure", "otherfurniture", "otherprop",
 )
-STRUCTURE = ("wall", "floor", "ceiling")  # labelled, but no objects
 OTHERPROP = 40
 PROX_SCENES = ("BasementSittingBooth", "MPH11", "MPH112", "MPH16", "MPH1Library", "MPH8",
                "N0SittingBooth", "N0Sofa", "N3Library", "N3Office", "N3OpenArea", "Werkraum")

@@ -115,6 +115,42 @@ def test_exported_programs_are_reused_only_for_the_same_code_and_shapes(tmp_path
     assert len(calls) == 3 and len(list(tmp_path.glob("f-*.jaxexport"))) == 3
 
 
+def test_cached_programs_take_large_constants_as_arguments(tmp_path):
+    """Weights a program closes over (≥ LIFT_BYTES) leave it as arguments kept in an ``.npz``
+    beside it; the numbers are those of the program with them inside, cached or not."""
+    import jax
+    import jax.numpy as jnp
+
+    import jaxmotion.compiled as C
+
+    rng = np.random.default_rng(0)
+    w = rng.normal(size=(512, 600)).astype(np.float32)  # 1.2 MB: lifted
+    b = rng.normal(size=(600,)).astype(np.float32)  # small: lifted with it (all or none)
+    def build():
+        wj, bj = jnp.asarray(w), jnp.asarray(b)
+        return lambda x: {"y": jnp.tanh(x @ wj + bj), "n": jnp.sum(x)}
+
+    x = rng.normal(size=(3, 512)).astype(np.float32)
+    want = jax.jit(build())(x)
+    first = C.cached_call(tmp_path, "g", "v1", build, (x,))
+    again = C.cached_call(tmp_path, "g", "v1", build, (x,))
+    for k in want:
+        np.testing.assert_array_equal(np.asarray(first[k]), np.asarray(want[k]))
+        np.testing.assert_array_equal(np.asarray(again[k]), np.asarray(want[k]))
+    (prog,) = tmp_path.glob("g-*.jaxexport")
+    with np.load(prog.with_suffix(".npz")) as z:
+        sizes = sorted(z[k].size for k in z.files)
+    assert sizes[-1] == w.size and prog.stat().st_size < w.nbytes / 4
+    # a small program keeps its constants
+    C.cached_call(tmp_path, "h", "v1", lambda: (lambda x: x * jnp.asarray(b[:3])), (x[0, :3],))
+    (small,) = tmp_path.glob("h-*.jaxexport")
+    assert not small.with_suffix(".npz").exists()
+    # a damaged weights file is rebuilt, not trusted
+    prog.with_suffix(".npz").write_bytes(b"not an npz")
+    np.testing.assert_array_equal(
+        np.asarray(C.cached_call(tmp_path, "g", "v1", build, (x,))["y"]), np.asarray(want["y"]))
+
+
 def test_known_target_keeps_the_map_off_its_class_mates(tiny_runs, ckpt):
     """With object_id (or grounding=auto) the other objects of the target's class are left
     out of the ADM's map; with grounding=adm and no object_id nothing is left out."""

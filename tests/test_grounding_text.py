@@ -308,3 +308,27 @@ def test_sentence_encoder_reads_what_the_word_lists_do_not(encoder_similarity):
     found = ground_candidates(room_objects, ins)
     assert ids(found) == [1] and found.how == "similarity"
     assert any("read 'bedframe' as bed by meaning" in n for n in found.notes)
+
+
+def test_peak_object_is_the_most_lit_object_in_the_crop():
+    """A text naming no object: the target is the object of the room's table that the ADM's
+    map lights most among those with points in the crop (brute-force mean of the strongest
+    channel over each object's points), None when the crop holds no lit object."""
+    from jaxmotion.grounding.region import lit, peak_object
+    from jaxmotion.scene.demo import load_scene_arg
+
+    room = load_scene_arg("demo", 20000)
+    rng = np.random.default_rng(0)
+    pick = rng.choice(room.num_points, 3000, replace=False)
+    inst = room.instance[pick]
+    maps = rng.uniform(0, 0.2, size=(len(pick), 6)).astype(np.float32)
+    ids = [i for i in np.unique(inst) if i >= 0]
+    hot = ids[len(ids) // 2]
+    maps[inst == hot] += 0.5
+    got = peak_object(room, inst, maps)
+    scores = {i: float(maps[inst == i].max(-1).mean()) for i in ids
+              if any(int(o["id"]) == i for o in room.objects)}
+    assert got is not None and int(got["id"]) == max(scores, key=scores.get) == hot
+    assert lit(maps, inst, hot) == pytest.approx(scores[hot])
+    assert peak_object(room, np.full(len(pick), -1), maps) is None
+    assert peak_object(room, inst, np.zeros_like(maps)) is None

@@ -35,3 +35,15 @@ def test_xla_cache_off_keeps_jaxmotions_own_root(tmp_path, monkeypatch):
     monkeypatch.setenv("JAXMOTION_XLA_CACHE", "off")
     assert S.enable_compilation_cache() == tmp_path / "own"
     assert jax.config.jax_compilation_cache_dir == before
+
+
+def test_seed_key_data_is_jaxs_key():
+    import jax
+    import numpy as np
+
+    from jaxmotion._jax_setup import seed_key_data
+
+    for seed in (0, 1, 3, 12345, 2**31 - 1, 2**31, 2**40):
+        want = np.asarray(jax.random.key_data(jax.random.key(seed)))
+        got = seed_key_data(seed)
+        assert got.dtype == want.dtype and np.array_equal(got, want), seed

@@ -281,3 +281,21 @@ def test_lying_rotation_lies_face_up_along_the_long_side():
         assert np.linalg.det(r) == pytest.approx(1.0, abs=1e-5)
         np.testing.assert_allclose(r[:, 1], [head, 0, 0], atol=1e-4)  # spine along the bed
         np.testing.assert_allclose(r[:, 2], [0, 0, 1], atol=1e-4)  # face up
+
+
+def test_walk_offset_leaves_a_door_on_the_side_the_walk_came_from():
+    """A door in a wall (a thin box along y = 0): a walk that ends against it is moved out to
+    WALK_STOP on the room's side — where its first frame was — even when its last pelvis is
+    past the door's middle line; without the start, out through the pelvis (the old rule)."""
+    g = np.stack(np.meshgrid(np.linspace(0.0, 1.0, 21), np.linspace(0.0, 0.09, 4)), -1)
+    xy = jnp.asarray(g.reshape(-1, 2), jnp.float32)
+    target = jnp.ones(len(xy), bool)
+    for end in ([0.5, 0.02], [0.3, 0.06], [0.8, -0.05]):
+        p = jnp.asarray(end, jnp.float32)
+        goal = np.asarray(p + A.walk_offset(p, xy, target, jnp.asarray([0.5, 2.0])))
+        assert goal[1] > 0.09, (end, goal)  # in the room
+        gaps = np.linalg.norm(np.asarray(xy) - goal, axis=-1)
+        assert gaps.min() == pytest.approx(A.WALK_STOP, abs=0.02)
+    # through the pelvis (no start known): a pelvis past the middle line goes out the far side
+    p = jnp.asarray([0.5, 0.02], jnp.float32)
+    assert float((p + A.walk_offset(p, xy, target))[1]) < 0.0

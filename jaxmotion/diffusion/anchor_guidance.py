@@ -195,13 +195,15 @@ def anchor_offset(pelvis_xy, points_xy, surface) -> jnp.ndarray:
     return jnp.where(move, goal - pelvis_xy, 0.0)
 
 
-def walk_offset(pelvis_xy, points_xy, target) -> jnp.ndarray:
+def walk_offset(pelvis_xy, points_xy, target, start_xy=None) -> jnp.ndarray:
     """The horizontal offset ``[2]`` (m) that brings a walk's last pelvis ``pelvis_xy [2]`` to
     :data:`WALK_STOP` from the nearest target point (``points_xy [N, 2]`` where ``target
     [N]``) when it stopped farther than :data:`WALK_NEAR`, or out of the object when it
-    stopped over it or closer than :data:`WALK_INSIDE` (out along the line from the middle of
-    the target's points through the pelvis, past their far side, then to WALK_STOP from the
-    nearest); zeros otherwise."""
+    stopped over it or closer than :data:`WALK_INSIDE`: out along the line from the middle of
+    the target's points towards the walk's first pelvis ``start_xy [2]`` (the side it came
+    from: a door or a window in a wall is left on the room's side; without ``start_xy``,
+    through the last pelvis), past their far side, then to WALK_STOP from the nearest; zeros
+    otherwise."""
     points_xy = jnp.asarray(points_xy)
     target = jnp.asarray(target, bool)
 
@@ -214,7 +216,7 @@ def walk_offset(pelvis_xy, points_xy, target) -> jnp.ndarray:
     closer, gap = toward(pelvis_xy)
     w = target.astype(jnp.float32)
     middle = jnp.sum(points_xy * w[:, None], 0) / jnp.maximum(jnp.sum(w), 1.0)
-    away = pelvis_xy - middle
+    away = (pelvis_xy if start_xy is None else jnp.asarray(start_xy)) - middle
     norm = jnp.linalg.norm(away)
     away = jnp.where(norm > 1e-6, away / jnp.maximum(norm, 1e-6), jnp.array([1.0, 0.0]))
     beyond = jnp.max(jnp.where(target, (points_xy - pelvis_xy) @ away, -_FAR))
@@ -306,8 +308,9 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
         # lie: the pelvis to the middle of the surface, where the whole body fits
         offset = jnp.where(lying > 0, middle[None] - pelvis[:, :2], offset)
         xy = pelvis[:, :2] + offset
-        stop = jax.vmap(walk_offset, in_axes=(0, None, None))(pelvis[:, :2], points[:, :2],
-                                                             target)
+        first = x0_hat[:, 0, :2] * std[:2] + mean[:2]  # where the walk came from
+        stop = jax.vmap(walk_offset, in_axes=(0, None, None, 0))(pelvis[:, :2], points[:, :2],
+                                                                target, first)
         offset = gate_xy * offset + walk_xy * stop
         height = jax.vmap(surface_height, in_axes=(0, None, None))(xy, points, surface)
         lift = jnp.where(jnp.isnan(height), 0.0, height + rest - pelvis[:, 2])  # [B]

@@ -592,8 +592,7 @@ def evaluate(
                     target = np.stack([cases[i]["chosen_mask" if regions is not None
                                              else "target_mask"] for i in idx])
                     acts = [read_instruction(cases[i]["text"]).action for i in idx]
-                    avoid = np.stack([furniture_mask(cases[i]["points"], cases[i]["instance"],
-                                                     cases[i]["objects"], t,
+                    avoid = np.stack([furniture_mask(cases[i]["points"], t,
                                                      target_too=keeps_out_of_target(a))
                                       for i, t, a in zip(idx, target, acts)])
                     res = jax.device_get(objects.sample(

@@ -30,7 +30,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from jaxmotion.constants import ACTION_CLASSES, PASSABLE, SCENE_FPS, UNKNOWN_ACTION
+from jaxmotion.constants import ACTION_CLASSES, SCENE_FPS, UNKNOWN_ACTION
 from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.rotations import matrix_to_rotation_6d
@@ -304,16 +304,14 @@ class ObjectCentricPipeline:
         return {"joints": joints[jnp.arange(b), best], "motion": motion[jnp.arange(b), best]}
 
 
-def furniture_mask(points, instance, objects, target_mask, *, target_too: bool = False):
-    """The crop points ``[N]`` a body keeps out of, for choosing among candidate motions: the
-    points above 0.1 m of the room's objects (``objects``: object-table rows; ``instance
-    [N]`` the points' ids) that are not :data:`~jaxmotion.constants.PASSABLE`, the target's
-    (``target_mask [N]``) aside unless ``target_too`` (:func:`keeps_out_of_target`)."""
+def furniture_mask(points, target_mask, *, target_too: bool = False):
+    """The crop points ``[N]`` a body keeps out of, for choosing among candidate motions: every
+    point above 0.1 m — the furniture, and the walls with their doors and windows (a walk to a
+    door stops in front of it, not through the wall) — the target's (``target_mask [N]``)
+    aside unless ``target_too`` (:func:`keeps_out_of_target`); ``points [N, 3]``."""
     import numpy as np
 
-    solid = [o["id"] for o in objects if o["category"] not in PASSABLE]
-    return (np.isin(instance, solid) & (np.asarray(points)[:, 2] > 0.1)
-            & (~np.asarray(target_mask, bool) | bool(target_too)))
+    return (np.asarray(points)[:, 2] > 0.1) & (~np.asarray(target_mask, bool) | bool(target_too))
 
 
 def keeps_out_of_target(action) -> bool:
@@ -388,8 +386,7 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     k = opts.samples
     tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))
     normals = (np.asarray(room.normal[pick], np.float32) @ rot.T).astype(np.float32)
-    avoid = furniture_mask(pts, room.instance[pick], room.objects, on_target,
-                           target_too=keeps_out_of_target(action))
+    avoid = furniture_mask(pts, on_target, target_too=keeps_out_of_target(action))
     betas = np.zeros((k, 10), np.float32)
     args = (np.asarray(root), tile(pts), tile(normals), tile(on_target),
             tile(np.asarray(pooled_text(text_emb), np.float32)[0]), betas,

@@ -291,8 +291,8 @@ class Teller:
 
     def crop(self, centre, oid, others=False):
         """The crop around ``centre``: points, normals, the object ``oid``'s mask, the crop
-        frame (``rot``, ``shift``) and, with ``others``, the mask of the other objects' points
-        a body must keep out of (above 0.1 m; doors, windows and walls aside)."""
+        frame (``rot``, ``shift``) and, with ``others``, the mask of the points a body must keep
+        out of (above 0.1 m, the object's own aside: :func:`furniture_mask`)."""
         from jaxmotion.data.crop import crop_at
 
         rng = np.random.default_rng([self.seed, 7, self.windows])
@@ -306,7 +306,7 @@ class Teller:
             return out
         from jaxmotion.pipelines.object_centric import furniture_mask
 
-        return (*out, furniture_mask(pts, inst, self.scene.objects, inst == oid))
+        return (*out, furniture_mask(pts, inst == oid))
 
     def next_key(self):
         self.windows += 1

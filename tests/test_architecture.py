@@ -168,3 +168,24 @@ def test_no_private_names_across_modules():
 def test_generation_only_orchestrates():
     lines = (PKG / "generation.py").read_text().count("\n")
     assert lines < 300, f"generation.py has {lines} lines; move stages into their modules"
+
+
+def test_a_cached_generate_imports_no_network_library():
+    """The modules a cached ``generate`` runs through import neither Flax, jaxopt nor SciPy's
+    spatial module (together ~1 s of every command's start-up): networks and the body fit
+    are imported inside the functions that build them."""
+    import subprocess
+    import sys
+
+    mods = ("jaxmotion.cli", "jaxmotion.generation", "jaxmotion.pipelines.object_centric",
+            "jaxmotion.pipelines.checkpoints", "jaxmotion.text.condition", "jaxmotion.grounding",
+            "jaxmotion.grounding.region", "jaxmotion.export", "jaxmotion.export.folder",
+            "jaxmotion.scene.demo", "jaxmotion.planning.control", "jaxmotion.compiled",
+            "jaxmotion.diffusion.anchor_guidance", "jaxmotion.models.weights",
+            "jaxmotion.eval.plausibility")
+    code = ("import sys\n" + "".join(f"import {m}\n" for m in mods) +
+            "print(sorted(m for m in ('flax', 'jaxopt', 'scipy.spatial', 'optax') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip().splitlines()[-1]
+    assert out == "[]", f"imported at start-up: {out}"

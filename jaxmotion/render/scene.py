@@ -1,0 +1,377 @@
+"""The room layer: scene points as lit disc splats, a floor plane, eye-dome lighting, shadows.
+
+:class:`SceneLayer` prepares a room once per clip (host NumPy):
+
+- **splat sizes**: each point's disc radius is its distance to its 4th-nearest neighbour
+  (clipped to [4 mm, 6 cm]), so a surface sampled at any density reads as closed;
+- **normals**: the scene's own where it has them, else the smallest principal axis of the 8
+  nearest neighbours (sign unknown: the points are lit two-sided);
+- **colours**: ``rgb · (ambient + key · |n · l|)`` with the light fixed for the clip, the
+  target object's points tinted with :data:`HIGHLIGHT`.
+
+For a camera, :meth:`SceneLayer.background` draws the picture without the bodies: the points
+near the motion (a *cutaway*: points above the motion + 0.5 m and points between the eye and
+the motion above 12 cm are left out, so neither ceiling nor near walls and furniture hide the
+body), an infinite floor plane at z = 0 behind them (the scene's own floor points win), and
+eye-dome lighting (EDL, a darkening where the depth steps away from the eye: the outlines
+that make chairs readable against the floor in a point cloud). It also returns what the
+shadows need: the world position of every pixel that can receive one.
+
+:class:`ShadowMap` darkens those pixels under the bodies of a frame: a grid of 2 cm cells
+records how much body lies above each cell and its lowest point; a receiver at height ``z``
+under body whose lowest point is ``g`` above it darkens by ``cover · exp(−g / 0.25 m)`` (a
+contact shadow: strong under a seated pelvis or on the floor at the feet, faint under a body
+standing tall), plus a wide soft drop shadow on the floor.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jaxmotion.render import raster
+from jaxmotion.render.camera import Camera
+
+__all__ = ["FLOOR_RGB", "HIGHLIGHT", "BackgroundPicture", "CutawayHoles", "SceneLayer",
+           "ShadowMap",
+           "light_direction"]
+
+HIGHLIGHT = np.array([1.0, 0.62, 0.05])  # the target object's tint (amber)
+FLOOR_RGB = np.array([0.86, 0.855, 0.84])
+SKY = np.array([1.0, 1.0, 1.0])  # the picture where nothing is drawn
+_FLOOR_ID = 0xFFFF_FFFE  # primitive id of the floor plane in the scene's z-buffer
+_CUT_ABOVE = 0.5  # metres above the motion's top joint
+_CUT_NEAR_Z = 0.12  # points lower than this are never cut away (the floor)
+_EDL_STRENGTH = 350.0
+_EDL_MAX = 0.6  # the darkest outline keeps 40 % of the colour
+_FLOOR_FADE = (4.0, 7.0)
+_CUT_SHARE = 0.05  # an object with more of its points in front of the body is left out whole
+_BODY_RADIUS = 0.22  # metres around joints and bone midpoints: the body for the cutaway  # metres from the target: the floor fades to white between these
+
+
+def light_direction(cam: Camera) -> np.ndarray:
+    """The key light's unit direction (toward the light): high, over the camera's left
+    shoulder, so shadows fall behind and to the right of a body."""
+    right, _, forward = cam.rot
+    d = -0.45 * right - 0.55 * forward + np.array([0.0, 0.0, 1.3])
+    return d / np.linalg.norm(d)
+
+
+class BackgroundPicture:
+    """The room drawn from one camera ``cam``: ``rgb [H, W, 3]`` float32 in [0, 1],
+    ``depth [H, W]`` float32 (inf where nothing is drawn) and the world point seen at each
+    pixel, ``world [H, W, 3]`` float32 (NaN where none: the shadows' receivers)."""
+
+    __slots__ = ("_receivers", "cam", "depth", "rgb", "world")
+
+    def __init__(self, cam: Camera, rgb, depth, world):
+        self.cam, self.rgb, self.depth, self.world = cam, rgb, depth, world
+        self._receivers = None
+
+    def receivers(self) -> tuple[np.ndarray, np.ndarray]:
+        """Flat pixel indices ``[R]`` that show a world point, and those points ``[R, 3]``."""
+        if self._receivers is None:
+            flat = self.world.reshape(-1, 3)
+            pix = np.flatnonzero(np.isfinite(flat[:, 0]))
+            self._receivers = (pix, flat[pix])
+        return self._receivers
+
+    def crop(self, cam: Camera) -> BackgroundPicture:
+        """The picture seen by ``cam``: this camera's eye and direction, another focal length
+        and principal point (an off-axis crop, resampled: colours bilinearly, depth and
+        world points from the nearest pixel)."""
+        from PIL import Image
+
+        src = self.cam
+        k = src.focal / cam.focal
+        # frame pixel centre i + 0.5 ↦ source coordinate cx_s + k (i + 0.5 − cx)
+        box = (src.cx - k * cam.cx, src.cy - k * cam.cy,
+               src.cx + k * (cam.width - cam.cx), src.cy + k * (cam.height - cam.cy))
+        img = Image.fromarray(np.clip(self.rgb * 255 + 0.5, 0, 255).astype(np.uint8))
+        rgb = np.asarray(img.resize((cam.width, cam.height), Image.BILINEAR, box=box),
+                         np.float32) / 255.0
+        ix = np.floor(src.cx + k * (np.arange(cam.width) + 0.5 - cam.cx)).astype(np.int64)
+        iy = np.floor(src.cy + k * (np.arange(cam.height) + 0.5 - cam.cy)).astype(np.int64)
+        ix, iy = np.clip(ix, 0, src.width - 1), np.clip(iy, 0, src.height - 1)
+        return BackgroundPicture(cam, rgb, self.depth[np.ix_(iy, ix)],
+                                 self.world[np.ix_(iy, ix)])
+
+
+class SceneLayer:
+    """A room prepared for drawing (see the module docstring).
+
+    Args:
+      xyz: ``[N, 3]`` points, z-up, metres; rgb: ``[N, 3]`` in [0, 1].
+      normal: ``[N, 3]`` unit normals, zero rows unknown (None: all unknown).
+      highlight: ``[N]`` bool, the target object's points (tinted), or None.
+      instance: ``[N]`` object ids (−1: none), or None: an object that would hide the body
+        is left out whole.
+      light: the key light's direction (see :func:`light_direction`).
+      floor: draw the floor plane at z = 0.
+    """
+
+    def __init__(self, xyz, rgb, normal=None, highlight=None, instance=None, *, light,
+                 floor: bool = True):
+        self.xyz = np.asarray(xyz, np.float64)
+        self.instance = None if instance is None else np.asarray(instance, np.int64)
+        n = len(self.xyz)
+        rgb = np.asarray(rgb, np.float64)
+        self.floor = floor
+        self.radius = np.full(n, 0.02)
+        normal = np.zeros((n, 3)) if normal is None else np.asarray(normal, np.float64)
+        self.oriented = np.abs(normal).sum(1) > 0  # the scene's own normals: facing known
+        if n >= 8:
+            from scipy.spatial import cKDTree
+
+            tree = cKDTree(self.xyz)
+            d, nb = tree.query(self.xyz, k=9)
+            self.radius = np.clip(d[:, 6], 0.004, 0.10)
+            unknown = np.abs(normal).sum(1) == 0
+            if unknown.any():
+                normal = normal.copy()
+                normal[unknown] = _pca_normals(self.xyz, nb[unknown])
+        self.normal = normal
+        lit = np.abs(normal @ light)
+        shade = np.where(np.abs(normal).sum(1) > 0, 0.62 + 0.45 * lit, 0.9)
+        self.highlight = np.zeros(n, bool) if highlight is None else np.asarray(highlight, bool)
+        if self.highlight.any():
+            h = self.highlight
+            rgb = rgb.copy()
+            rgb[h] = 0.3 * rgb[h] + 0.7 * HIGHLIGHT
+        self.colour = np.clip(rgb * shade[:, None], 0.0, 1.0).astype(np.float32)
+
+    def visible(self, cam: Camera, target: np.ndarray, reach: float, top: float,
+                holes: CutawayHoles | None = None) -> np.ndarray:
+        """Indices of the points drawn for ``cam`` looking at ``target``: the points facing the
+        camera (those whose own normal faces away are the far side of a surface: the outside
+        of the near walls), below ``top`` + 0.5 m; of the points of no object (walls, an
+        unlabelled scan) not those nearer to the eye than ``reach`` (horizontally from the
+        target, toward the eye) unless on the floor; and not those in front of the body
+        (``holes``; objects with more than 5 % of their points there, whole) unless on the floor or
+        highlighted."""
+        p = self.xyz
+        back = -cam.rot[2]
+        back_h = back[:2] / max(np.linalg.norm(back[:2]), 1e-9)
+        toward_eye = (p[:, :2] - target[:2]) @ back_h
+        low = p[:, 2] < _CUT_NEAR_Z
+        unlabelled = np.ones(len(p), bool) if self.instance is None else self.instance < 0
+        keep = p[:, 2] < top + _CUT_ABOVE
+        keep &= low | (toward_eye < reach) | ~unlabelled
+        facing = ((cam.eye - p) * self.normal).sum(1) > 0
+        keep &= facing | ~self.oriented
+        sel = np.flatnonzero(keep)
+        if holes is not None:
+            cut = holes.in_front(cam, p[sel]) & ~low[sel] & ~self.highlight[sel]
+            if self.instance is not None:  # an object mostly in front goes whole
+                inst = self.instance[sel]
+                objects = inst >= 0
+                if objects.any():
+                    _ids, where = np.unique(inst[objects], return_inverse=True)
+                    share = np.bincount(where, cut[objects]) / np.bincount(where)
+                    whole = np.zeros(len(sel), bool)
+                    whole[objects] = share[where] > _CUT_SHARE
+                    cut |= whole & ~self.highlight[sel]
+            sel = sel[~cut]
+        return sel
+
+    def background(self, cam: Camera, target: np.ndarray, reach: float, top: float,
+                   supersample: int = 1, holes: CutawayHoles | None = None
+                   ) -> BackgroundPicture:
+        """The room from ``cam`` (see the module docstring), drawn at ``supersample`` times the
+        camera's size and reduced to it (colours averaged, the nearest depth kept)."""
+        big = cam.scaled(supersample) if supersample > 1 else cam
+        w, h = big.width, big.height
+        sel = self.visible(cam, target, reach, top, holes)
+        frags = raster.raster_surfels(big.view(self.xyz[sel]), self.normal[sel] @ big.rot.T,
+                                      self.radius[sel], big.focal, big.cx, big.cy, w, h)
+        buf = np.full(w * h, raster.EMPTY_KEY, np.uint64)
+        if self.floor:
+            floor_depth = _floor_depth(big)
+            ok = np.flatnonzero(np.isfinite(floor_depth))
+            # the plane lies 1 cm deeper than it is, so the scene's own floor points win
+            buf[ok] = raster.keys(floor_depth[ok] + np.float32(0.01),
+                                  np.full(len(ok), _FLOOR_ID))
+        raster.resolve(buf, frags)
+        depth = raster.depth_of_keys(buf)
+        ids = raster.id_of_keys(buf)
+        point = np.flatnonzero((ids >= 0) & (ids < len(sel)))
+        world = np.full((w * h, 3), np.nan, np.float32)
+        rgb = np.empty((w * h, 3), np.float32)
+        rgb[:] = SKY
+        rgb[point] = self.colour[sel[ids[point]]]
+        world[point] = self.xyz[sel[ids[point]]]
+        if self.floor:
+            on = np.flatnonzero(ids == _FLOOR_ID)
+            depth[on] -= np.float32(0.01)
+            hit = _floor_points(big, on, depth[on])
+            rgb[on] = _floor_colour(hit, target)
+            world[on] = hit
+        rgb = rgb.reshape(h, w, 3)
+        depth = depth.reshape(h, w)
+        world = world.reshape(h, w, 3)
+        rgb *= _eye_dome(depth)[..., None]
+        if supersample > 1:
+            s = supersample
+            rgb = rgb.reshape(cam.height, s, cam.width, s, 3).mean((1, 3))
+            depth = depth.reshape(cam.height, s, cam.width, s).min((1, 3))
+            world = world[::s, ::s]  # one receiver per pixel: its top-left sample
+        return BackgroundPicture(cam, np.ascontiguousarray(rgb, np.float32),
+                                 np.ascontiguousarray(depth, np.float32),
+                                 np.ascontiguousarray(world))
+
+
+def _pca_normals(xyz: np.ndarray, neighbours: np.ndarray) -> np.ndarray:
+    """Unit normals from the neighbours' covariance (smallest eigenvector), sign arbitrary."""
+    q = xyz[neighbours[:, :9]]
+    q = q - q.mean(1, keepdims=True)
+    cov = np.einsum("nki,nkj->nij", q, q)
+    _, vec = np.linalg.eigh(cov)
+    return vec[:, :, 0]
+
+
+def _floor_depth(cam: Camera) -> np.ndarray:
+    """Depth ``[H*W]`` float32 of the plane z = 0 along each pixel's ray; inf where the ray
+    misses it (at or above the horizon) or meets it over 40 m away."""
+    # ray (u, v, 1) in camera coordinates has world z component u r0z + v r1z + r2z, and
+    # meets z = 0 at depth t = −eye_z / that
+    u = ((np.arange(cam.width) + 0.5 - cam.cx) / cam.focal).astype(np.float32)
+    v = ((np.arange(cam.height) + 0.5 - cam.cy) / cam.focal).astype(np.float32)
+    r = cam.rot.astype(np.float32)
+    dz = v[:, None] * r[1, 2] + u[None, :] * r[0, 2] + r[2, 2]
+    with np.errstate(divide="ignore"):
+        t = np.float32(-cam.eye[2]) / dz
+    t[(dz > -1e-6) | (t > 40.0)] = np.inf
+    return t.reshape(-1)
+
+
+def _floor_points(cam: Camera, pix: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """World points ``[M, 3]`` float32 at depth ``depth [M]`` through flat pixels ``pix``."""
+    u = (pix % cam.width + 0.5 - cam.cx) / cam.focal
+    v = (pix // cam.width + 0.5 - cam.cy) / cam.focal
+    ray = u[:, None] * cam.rot[0] + v[:, None] * cam.rot[1] + cam.rot[2]
+    return (cam.eye + depth[:, None] * ray).astype(np.float32)
+
+
+def _floor_colour(hit: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The floor plane's colour at world points ``hit [M, 3]``: light grey in 0.5 m tiles of
+    slightly different shade, fading to white away from ``target``."""
+    tile = (np.floor(hit[:, 0] / 0.5) + np.floor(hit[:, 1] / 0.5)) % 2
+    c = FLOOR_RGB[None, :] * (1.0 - 0.035 * tile)[:, None]
+    r = np.linalg.norm(hit[:, :2] - target[:2], axis=1)
+    fade = np.clip((r - _FLOOR_FADE[0]) / (_FLOOR_FADE[1] - _FLOOR_FADE[0]), 0.0, 1.0)
+    return (c * (1 - fade)[:, None] + SKY * fade[:, None]).astype(np.float32)
+
+
+def _eye_dome(depth: np.ndarray) -> np.ndarray:
+    """Eye-dome lighting factor ``[H, W]`` in (0, 1]: dark where neighbours 2 pixels away are
+    nearer in log-depth (outlines of objects against what lies behind them)."""
+    finite = np.isfinite(depth)
+    logd = np.log(np.where(finite, np.maximum(depth, 1e-3), 1e3)).astype(np.float32)
+    pad = np.pad(logd, 2, mode="edge")
+    h, w = depth.shape
+    resp = np.zeros_like(logd)
+    for dy, dx in ((-2, 0), (2, 0), (0, -2), (0, 2)):
+        nb = pad[2 + dy: 2 + dy + h, 2 + dx: 2 + dx + w]
+        resp += np.maximum(0.0, logd - nb)
+    # ignore the gentle slope of a plane seen at a grazing angle; outline real steps
+    resp = np.maximum(resp - 0.02, 0.0)
+    dark = 1.0 - np.exp(-_EDL_STRENGTH * resp * resp / (1 + 20 * resp))
+    return np.where(finite, 1.0 - _EDL_MAX * dark, 1.0).astype(np.float32)
+
+
+class CutawayHoles:
+    """Where the bodies will be on the picture, and how near: scene points in front of them
+    are left out (a table between the camera and the person does not hide the person).
+
+    ``joints [M, 22, 3]`` (the poses of the frames a camera shows) are widened into spheres of
+    :data:`_BODY_RADIUS` around the joints and the bones' midpoints; a coarse grid of
+    ``cell``-pixel squares keeps the nearest sphere surface's depth. A point is *in front*
+    when its square holds body at least 5 cm deeper than the point.
+    """
+
+    def __init__(self, cam: Camera, joints: np.ndarray, cell: int = 8):
+        from jaxmotion.geometry.skeleton import PARENTS
+
+        j = np.asarray(joints, np.float64).reshape(-1, 22, 3)
+        mids = 0.5 * (j[:, 1:] + j[:, list(PARENTS[1:])])
+        pts = np.concatenate([j, mids], 1).reshape(-1, 3)
+        xy, z = cam.project(pts)
+        ok = z > 0.05
+        xy, z = xy[ok], z[ok]
+        self.cell = cell
+        gw, gh = -(-cam.width // cell), -(-cam.height // cell)
+        self.shape = (gh, gw)
+        grid = np.full(gh * gw, np.inf)
+        r = _BODY_RADIUS * cam.focal / z / cell + 0.5  # sphere radius, cells
+        h = int(np.ceil(r.max())) if len(r) else 0
+        off = np.arange(-h, h + 1)
+        ci = np.floor(xy[:, 0] / cell).astype(np.int64)[:, None] + off
+        ri = np.floor(xy[:, 1] / cell).astype(np.int64)[:, None] + off
+        inside = (off[None, :, None] ** 2 + off[None, None, :] ** 2) <= (r * r)[:, None, None]
+        inside &= ((ri >= 0) & (ri < gh))[:, :, None] & ((ci >= 0) & (ci < gw))[:, None, :]
+        k, a, b = np.nonzero(inside)
+        np.minimum.at(grid, ri[k, a] * gw + ci[k, b], z[k] - _BODY_RADIUS)
+        self.grid = grid
+
+    def in_front(self, cam: Camera, p: np.ndarray) -> np.ndarray:
+        """``[M]`` bool: points ``p [M, 3]`` that would hide the body."""
+        xy, z = cam.project(p)
+        gh, gw = self.shape
+        ci = np.floor(xy[:, 0] / self.cell).astype(np.int64)
+        ri = np.floor(xy[:, 1] / self.cell).astype(np.int64)
+        on = (ci >= 0) & (ci < gw) & (ri >= 0) & (ri < gh) & (z > 0)
+        out = np.zeros(len(p), bool)
+        body = self.grid[ri[on] * gw + ci[on]]
+        out[on] = np.isfinite(body) & (z[on] < body - 0.05)
+        return out
+
+
+class ShadowMap:
+    """Contact and drop shadows of the bodies of one frame (see the module docstring).
+
+    Args:
+      vertices: ``[M, 3]`` body vertices (all samples; a subset is enough).
+      light: the key light's direction.
+      cell: grid cell side, metres.
+    """
+
+    def __init__(self, vertices: np.ndarray, light: np.ndarray, cell: float = 0.02):
+        from scipy.ndimage import gaussian_filter, minimum_filter
+
+        v = np.asarray(vertices, np.float64)
+        self.cell = cell
+        # the drop shadow: vertices slid along the light onto the floor
+        drop = v[:, :2] - v[:, 2:3] * (light[:2] / max(light[2], 0.2))
+        lo = np.minimum(v[:, :2].min(0), drop.min(0)) - 0.4
+        hi = np.maximum(v[:, :2].max(0), drop.max(0)) + 0.4
+        self.origin = lo
+        self.shape = tuple(np.ceil((hi - lo) / cell).astype(int) + 1)
+        gx, gy = self.shape
+
+        def cells(xy):
+            ij = np.floor((xy - lo) / cell).astype(np.int64)
+            return np.clip(ij[:, 0], 0, gx - 1) * gy + np.clip(ij[:, 1], 0, gy - 1)
+
+        c = cells(v[:, :2])
+        count = np.bincount(c, minlength=gx * gy).reshape(gx, gy).astype(np.float32)
+        low = np.full(gx * gy, np.inf, np.float32)
+        np.minimum.at(low, c, v[:, 2].astype(np.float32))
+        low = minimum_filter(low.reshape(gx, gy), size=5, mode="nearest")
+        self.low = np.where(np.isfinite(low), low, 1e3).astype(np.float32)
+        self.cover = np.clip(gaussian_filter((count > 0).astype(np.float32), 2.5 / cell * 0.02
+                                             * 1.5, mode="constant") * 1.6, 0.0, 1.0)
+        dc = np.bincount(cells(drop), minlength=gx * gy).reshape(gx, gy) > 0
+        self.drop = np.clip(gaussian_filter(dc.astype(np.float32), 0.07 / cell,
+                                            mode="constant") * 1.4, 0.0, 1.0)
+
+    def factor(self, xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Shading factors in (0, 1] for receivers ``xyz [R, 3]`` inside the grid, and which
+        receivers those are (indices)."""
+        ij = np.floor((xyz[:, :2] - self.origin) / self.cell).astype(np.int64)
+        inside = np.flatnonzero((ij[:, 0] >= 0) & (ij[:, 0] < self.shape[0]) & (ij[:, 1] >= 0)
+                                & (ij[:, 1] < self.shape[1]))
+        i, j = ij[inside, 0], ij[inside, 1]
+        gap = self.low[i, j] - xyz[inside, 2]
+        contact = self.cover[i, j] * np.exp(-np.maximum(gap, 0.0) / 0.25) * (gap > -0.05)
+        drop = self.drop[i, j] * (np.abs(xyz[inside, 2]) < 0.05)
+        f = (1.0 - 0.55 * contact) * (1.0 - 0.28 * drop)
+        return f.astype(np.float32), inside

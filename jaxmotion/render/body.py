@@ -11,7 +11,8 @@ space (exact for a user's SMPL-X model; first-order for the mannequin, see
 :mod:`jaxmotion.body.model`).
 
 Vertex normals are area-weighted face normals summed per vertex (:func:`vertex_normals`, a
-sparse incidence product).
+sparse incidence product). Nothing here calls BLAS: on a machine shared with other work its
+threads cost more than they save (a frame took twice as long with them).
 """
 
 from __future__ import annotations
@@ -64,7 +65,8 @@ class Bodies:
     @staticmethod
     def from_smplx(global_orient, body_pose, transl, betas=None, model=None) -> Bodies:
         """SMPL-X parameters ``[(K,) T, 3]``, ``[(K,) T, 21, 3]`` (or ``[..., 63]``),
-        ``[(K,) T, 3]``, ``betas [(K,) B]`` posed on ``model`` (default: the mannequin)."""
+        ``[(K,) T, 3]``, ``betas [(K,) B]`` posed on ``model``; None: the mannequin built at
+        each sample's betas (exact mesh, as in ``motion.glb``)."""
         from jaxmotion.body.model import load_mannequin, shaped_rest_host
 
         go = np.asarray(global_orient, np.float64)
@@ -80,13 +82,17 @@ class Bodies:
         if betas is not None:
             betas = np.asarray(betas, np.float64)
             betas = np.broadcast_to(betas if betas.ndim == 2 else betas[None], (k, betas.shape[-1]))
-        model = load_mannequin() if model is None else model
+        anchored = model is None  # each sample's own mannequin, exact at its betas
+        models = [model] * k if not anchored else [
+            load_mannequin(None if betas is None else betas[s]) for s in range(k)]
+        model = models[0]
         parents = model.parents
-        weights = np.asarray(model.weights, np.float32)
+        influence, weight, blocks, perm = _influences(np.asarray(model.weights, np.float32))
         posedirs = np.asarray(model.posedirs, np.float64)
         fixed = np.asarray(model.fixed_pose, np.float64)
         num_joints = len(parents)
-        rest = [shaped_rest_host(model, None if betas is None else betas[s]) for s in range(k)]
+        rest = [shaped_rest_host(m, None if betas is None or anchored else betas[s])
+                for s, m in enumerate(models)]
         aa = np.concatenate([go[:, :, None], bp, np.broadcast_to(
             fixed[22:], (k, t, num_joints - 22, 3))], axis=2)
         local = _rodrigues(aa)  # [K, T, J, 3, 3]
@@ -108,19 +114,42 @@ class Bodies:
         eye = np.eye(3)
 
         def frame(i: int) -> np.ndarray:
-            out = np.empty((k, weights.shape[0], 3), np.float32)
+            out = np.empty((k, len(influence), 3), np.float32)
             for s in range(k):
                 v = rest[s][0]
                 if posedirs.shape[-1]:
                     feat = (local[s, i, 1:22] - eye).reshape(-1)[: posedirs.shape[-1]]
                     v = v + posedirs @ feat
-                v = v.astype(np.float32)
-                m = (weights @ affine[s, i]).reshape(-1, 3, 4)  # blended [G | t] per vertex
-                out[s] = (m[:, :, 0] * v[:, :1] + m[:, :, 1] * v[:, 1:2] + m[:, :, 2] * v[:, 2:]
-                          + m[:, :, 3])
+                v = v.astype(np.float32)[perm]
+                a = affine[s, i]
+                m = a[influence[:, 0]]  # blended [G | t] per vertex (sorted by influences)
+                for c, start in enumerate(blocks[1:], 1):  # rows from `start` have > c
+                    if c == 1:
+                        m[start:] *= weight[start:, :1]
+                    m[start:] += weight[start:, c : c + 1] * a[influence[start:, c]]
+                m = m.reshape(-1, 3, 4)
+                out[s, perm] = (m[:, :, 0] * v[:, :1] + m[:, :, 1] * v[:, 1:2]
+                                + m[:, :, 2] * v[:, 2:] + m[:, :, 3])
             return out
 
         return Bodies(np.asarray(model.faces, np.int64), k, t, frame)
+
+
+def _influences(weights: np.ndarray, most: int = 8):
+    """The skinning weights as a few gathers: vertices sorted by their count of influences
+    (``perm [V]``), and for each its joints ``[V, C]`` and weights ``[V, C]``, strongest first
+    (C ≤ ``most``; renormalised when cut); ``blocks[c]`` is the first sorted row with more
+    than c influences. Most of the mannequin's vertices follow one joint (a plain gather);
+    blending needs no BLAS call, whose threads cost more than they save on a busy machine."""
+    count = np.minimum((weights > 0).sum(1), most)
+    perm = np.argsort(count, kind="stable")
+    w = weights[perm]
+    c = max(1, int(count.max()))
+    idx = np.argsort(-w, axis=1, kind="stable")[:, :c]
+    ww = np.take_along_axis(w, idx, axis=1).astype(np.float32)
+    ww /= ww.sum(1, keepdims=True)
+    blocks = np.searchsorted(count[perm], np.arange(c), side="right")
+    return idx, ww, blocks, perm
 
 
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray, incidence=None) -> np.ndarray:

@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +34,7 @@ from jaxmotion._atomic import atomic_open
 from jaxmotion.export._common import PALETTE
 from jaxmotion.render import raster
 from jaxmotion.render.body import Bodies, face_incidence, vertex_normals
-from jaxmotion.render.camera import ELEVATION_DEG, Camera, _frame_box, plan_cameras
+from jaxmotion.render.camera import ELEVATION_DEG, Camera, _frame_box, plan_cameras, rotate
 from jaxmotion.render.scene import CutawayHoles, SceneLayer, ShadowMap, light_direction
 
 __all__ = ["SAMPLE_LAYOUTS", "SUPERSAMPLE", "Clip", "body_colour", "render_still",
@@ -106,6 +107,7 @@ class Clip:
         self.top = float(self.joints[..., 2].max())
         self.faces = bodies.faces
         self._incidence = None
+        self.smooth = True
         self._room = None
         self._room_supersample = max(1.0, float(room_supersample))
 
@@ -156,16 +158,11 @@ class Clip:
         return self._annotate(out, f, [g[0] for g in groups] if self.layout == "grid" else None)
 
     def _shadows(self, rgb: np.ndarray, bg, verts: np.ndarray) -> None:
-        pix, xyz = bg.receivers()
-        if not len(pix):
-            return
         shadow = ShadowMap(verts[:, ::_SHADOW_STRIDE].reshape(-1, 3), self.light)
-        lo = shadow.origin
-        hi = lo + np.array(shadow.shape) * shadow.cell
-        near = np.flatnonzero((xyz[:, 0] >= lo[0]) & (xyz[:, 0] < hi[0]) & (xyz[:, 1] >= lo[1])
-                              & (xyz[:, 1] < hi[1]))
-        factor, inside = shadow.factor(xyz[near])
-        rgb.reshape(-1, 3)[pix[near[inside]]] *= factor[:, None]
+        pix, xyz = bg.receivers(*shadow.box)
+        if len(pix):
+            factor, inside = shadow.factor(xyz)
+            rgb.reshape(-1, 3)[pix[inside]] *= factor[:, None]
 
     def _bodies(self, rgb: np.ndarray, depth: np.ndarray, cam: Camera, verts: np.ndarray,
                 members: list[int]) -> None:
@@ -205,13 +202,18 @@ class Clip:
             if not len(sel):
                 continue
             face = ids[sel] - i * nf
-            xy, z = proj[i]
-            bary = raster.triangle_barycentrics(xy - shift, z, self.faces, face, sel % rw,
-                                                sel // rw)
             normals = vertex_normals(verts[k], self.faces, self._incidence)
-            n = np.einsum("mc,mcd->md", bary, normals[self.faces[face]])
-            n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-9)
-            colour[sel] = _shade_body(n, body_colour(k), self.light, cam.rot[2])
+            vc = _shade_body(normals, body_colour(k), self.light, cam.rot[2])
+            if self.smooth:  # Gouraud: vertex colours interpolated across each triangle
+                xy, z = proj[i]
+                bary = raster.triangle_barycentrics(xy - shift, z, self.faces, face, sel % rw,
+                                                    sel // rw).astype(np.float32)
+                tri = self.faces[face]
+                colour[sel] = (bary[:, :1] * vc[tri[:, 0]] + bary[:, 1:2] * vc[tri[:, 1]]
+                               + bary[:, 2:] * vc[tri[:, 2]])
+            else:  # each triangle in the mean of its corners' colours (a pixel or two wide)
+                fc = (vc[self.faces[:, 0]] + vc[self.faces[:, 1]] + vc[self.faces[:, 2]]) / 3
+                colour[sel] = fc[face]
         rgb[y0:y1, x0:x1] = _reduce(colour.reshape(rh, rw, 3), s)
 
     def _annotate(self, img: np.ndarray, f: int, tile_samples) -> np.ndarray:
@@ -254,13 +256,14 @@ class Clip:
 def _shade_body(n: np.ndarray, base: np.ndarray, light: np.ndarray, forward: np.ndarray):
     """Colours ``[M, 3]`` of body pixels with unit normals ``n [M, 3]``."""
     view = -forward
-    key = np.maximum(n @ light, 0.0)
-    hemi = 0.5 + 0.5 * n[:, 2]
-    facing = np.clip(n @ view, 0.0, 1.0)
-    rim = (1.0 - facing) ** 3
     half = light + view
     half /= np.linalg.norm(half)
-    spec = np.maximum(n @ half, 0.0) ** 40
+    n = np.asarray(n, np.float32)
+    dots = rotate(n, np.stack([light, view, half]).astype(np.float32))
+    key = np.maximum(dots[:, 0], 0.0)
+    hemi = 0.5 + 0.5 * n[:, 2]
+    rim = (1.0 - np.clip(dots[:, 1], 0.0, 1.0)) ** 3
+    spec = np.maximum(dots[:, 2], 0.0) ** 40
     c = base[None, :] * (0.30 + 0.20 * hemi + 0.55 * key)[:, None]
     c += (0.10 * rim + 0.12 * spec)[:, None]
     return np.clip(c, 0.0, 1.0).astype(np.float32)
@@ -329,7 +332,9 @@ def render_video(path, clip: Clip, *, video_fps: float | None = None,
             tmp, (clip.width, clip.height), fps=out_fps, codec="libx264", macro_block_size=1,
             quality=None, output_params=["-preset", "veryfast", "-crf", "20",
                                          "-movflags", "+faststart"])
-        writer.send(None)
+        with warnings.catch_warnings():  # fork + exec of ffmpeg: JAX's fork warning is moot
+            warnings.filterwarnings("ignore", message="os.fork", category=RuntimeWarning)
+            writer.send(None)
         try:
             for f in frames:
                 writer.send(np.ascontiguousarray(clip.draw(f)))

@@ -9,8 +9,9 @@ fragment, and one ``np.minimum.at`` resolves the depth test and names the winner
 Coverage follows the usual rule: a pixel ``(i, j)`` (column, row; y down) is covered when its
 centre ``(i + 0.5, j + 0.5)`` lies inside the projected triangle (edges included), so a closed
 mesh leaves no holes however small its triangles. Depth is interpolated perspective-correctly:
-``1/z`` is linear in screen space. Triangles are grouped by the sides of their pixel
-bounding box (1, 2, 3, 4, 5, 6, 8, ...) and each group is tested as one ``[n, h, w]`` array, so a body of
+``1/z`` is linear in screen space. Triangles are grouped by the longer side of their
+pixel bounding box (1, 2, 3, 4, 6, 8, 12, ...) and each group is tested as one ``[m, n, n]``
+array of float32 edge functions, so a body of
 48k triangles, most of them a few pixels wide, costs a few array passes rather than a Python
 loop; the few large triangles are cut into groups that bound the memory used.
 
@@ -80,7 +81,7 @@ def resolve(buffer: np.ndarray, frags: Fragments) -> np.ndarray:
     return buffer
 
 
-_SIDES = np.array([1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 24, 32, 48, 64])
+_SIDES = np.array([1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64])
 
 
 def _bucket_sides(extent: np.ndarray) -> np.ndarray:
@@ -122,67 +123,67 @@ def raster_triangles(
     xa, xb, xc = x[f0], x[f1], x[f2]
     ya, yb, yc = y[f0], y[f1], y[f2]
     area2 = (xb - xa) * (yc - ya) - (xc - xa) * (yb - ya)
-    zmin = np.minimum(np.minimum(z[f0], z[f1]), z[f2])
-    ok = (zmin > near) & ((area2 < 0) if cull_back else (area2 != 0))
-    # pixel bounding boxes, clipped to the picture
-    x0 = np.maximum(np.ceil(np.minimum(np.minimum(xa, xb), xc) - 0.5), 0)
-    x1 = np.minimum(np.floor(np.maximum(np.maximum(xa, xb), xc) - 0.5), width - 1)
-    y0 = np.maximum(np.ceil(np.minimum(np.minimum(ya, yb), yc) - 0.5), 0)
-    y1 = np.minimum(np.floor(np.maximum(np.maximum(ya, yb), yc) - 0.5), height - 1)
-    ok &= (x1 >= x0) & (y1 >= y0)
+    ok = (area2 < 0) if cull_back else (area2 != 0)
+    ok &= (z[f0] > near) & (z[f1] > near) & (z[f2] > near)
     idx = np.flatnonzero(ok)
-    if not len(idx):
+    xa, xb, xc, ya, yb, yc, area2 = (a[idx] for a in (xa, xb, xc, ya, yb, yc, area2))
+    # pixel bounding boxes (pixel i is covered when its centre i + 0.5 is), clipped
+    x0 = np.maximum(np.ceil(np.minimum(np.minimum(xa, xb), xc) - 0.5), 0.0)
+    x1 = np.minimum(np.floor(np.maximum(np.maximum(xa, xb), xc) - 0.5), width - 1.0)
+    y0 = np.maximum(np.ceil(np.minimum(np.minimum(ya, yb), yc) - 0.5), 0.0)
+    y1 = np.minimum(np.floor(np.maximum(np.maximum(ya, yb), yc) - 0.5), height - 1.0)
+    some = np.flatnonzero((x1 >= x0) & (y1 >= y0))
+    if not len(some):
         return Fragments.concat([])
-    tx = np.stack([xa[idx], xb[idx], xc[idx]], 1)
-    ty = np.stack([ya[idx], yb[idx], yc[idx]], 1)
-    tz = np.stack([z[f0[idx]], z[f1[idx]], z[f2[idx]]], 1)
-    area2 = area2[idx]
-    x0, y0 = x0[idx].astype(np.int64), y0[idx].astype(np.int64)
-    x1, y1 = x1[idx].astype(np.int64), y1[idx].astype(np.int64)
-    # Edge functions as planes over the screen, scaled so that they are the barycentric
-    # weights: b_i(p) = a_i x + b_i y + c_i, with edge i opposite vertex i.
+    idx = idx[some]
+    xa, xb, xc, ya, yb, yc, area2, x0, x1, y0, y1 = (
+        a[some] for a in (xa, xb, xc, ya, yb, yc, area2, x0, x1, y0, y1))
+    # Edge functions as planes over the screen, scaled to be the barycentric weights and taken
+    # relative to the first candidate's centre (x0 + .5, y0 + .5), so that float32 keeps them
+    # exact enough: b_i(x0 + .5 + dx, y0 + .5 + dy) = a_i dx + b_i dy + c_i (edge i opposite
+    # corner i). 1/z is linear on screen too: one more plane.
     inv = 1.0 / area2
-    j, k = [1, 2, 0], [2, 0, 1]
-    ea = (ty[:, j] - ty[:, k]) * inv[:, None]
-    eb = (tx[:, k] - tx[:, j]) * inv[:, None]
-    ec = (tx[:, j] * ty[:, k] - tx[:, k] * ty[:, j]) * inv[:, None]
-    iz = 1.0 / tz  # 1/z is linear on screen: one more plane
-    za, zb, zc = (ea * iz).sum(1), (eb * iz).sum(1), (ec * iz).sum(1)
+    ox, oy = x0 + 0.5, y0 + 0.5
+    za, zb, zc = 1.0 / z[f0[idx]], 1.0 / z[f1[idx]], 1.0 / z[f2[idx]]
+    planes = []
+    for (xj, yj), (xk, yk) in (((xb, yb), (xc, yc)), ((xc, yc), (xa, ya)), ((xa, ya), (xb, yb))):
+        a, b = (yj - yk) * inv, (xk - xj) * inv
+        planes.append((a, b, (xj * yk - xk * yj) * inv + a * ox + b * oy))
+    depth_plane = tuple(planes[0][i] * za + planes[1][i] * zb + planes[2][i] * zc
+                        for i in range(3))
+    f32 = [tuple(c.astype(np.float32) for c in p) for p in planes]
     ids = idx + id_offset
-    sx, sy = _bucket_sides(x1 - x0 + 1), _bucket_sides(y1 - y0 + 1)
-    bucket = sx * 4096 + sy
-    order = np.argsort(bucket, kind="stable")
-    starts = np.flatnonzero(np.diff(bucket[order], prepend=-1))
+    side = _bucket_sides(np.maximum(x1 - x0, y1 - y0).astype(np.int64) + 1)
+    order = np.argsort(side, kind="stable")
+    starts = np.flatnonzero(np.diff(side[order], prepend=-1))
     parts = []
-    for a, b in zip(starts, [*starts[1:], len(order)]):
-        members = order[a:b]
-        w, h = int(sx[members[0]]), int(sy[members[0]])
-        step = max(1, _MAX_CANDIDATES // (w * h))
+    x0i, y0i = x0.astype(np.int64), y0.astype(np.int64)
+    for lo_, hi_ in zip(starts, [*starts[1:], len(order)]):
+        members = order[lo_:hi_]
+        n = int(side[members[0]])
+        step = max(1, _MAX_CANDIDATES // (n * n))
         for lo in range(0, len(members), step):
             m = members[lo : lo + step]
-            parts.append(_triangle_bucket(w, h, x0[m], y0[m], x1[m], y1[m], ea[m], eb[m],
-                                          ec[m], za[m], zb[m], zc[m], ids[m], width))
+            parts.append(_triangle_bucket(n, m, f32, depth_plane, x0i, y0i, ids, width, height))
     return Fragments.concat(parts)
 
 
-def _triangle_bucket(w, h, x0, y0, x1, y1, ea, eb, ec, za, zb, zc, ids, width) -> Fragments:
-    """Fragments of n triangles whose bounding boxes fit a ``w × h`` box at ``(x0, y0)``."""
-    px = x0[:, None] + np.arange(w)  # [n, w] columns
-    py = y0[:, None] + np.arange(h)  # [n, h] rows
-    cx = (px + 0.5)[:, None, :]
-    cy = (py + 0.5)[:, :, None]
-    inside = (px <= x1[:, None])[:, None, :] & (py <= y1[:, None])[:, :, None]
-    for e in range(3):
-        inside &= ea[:, e, None, None] * cx + eb[:, e, None, None] * cy + ec[:, e, None, None] >= 0
-    n, r, c = np.nonzero(inside)
-    if not len(n):
-        return Fragments.concat([])
-    col, row = px[n, c], py[n, r]
-    inv_depth = za[n] * (col + 0.5) + zb[n] * (row + 0.5) + zc[n]
+def _triangle_bucket(n, m, planes, depth_plane, x0, y0, ids, width, height) -> Fragments:
+    """Fragments of the triangles ``m`` whose bounding boxes fit ``n × n`` pixels."""
+    off = np.arange(n, dtype=np.float32)
+    inside = None
+    for a, b, c in planes:  # E = (b dy + c) [m, n, 1] + (a dx) [m, 1, n]
+        e = (b[m, None] * off + c[m, None])[:, :, None] + (a[m, None] * off)[:, None, :]
+        inside = e if inside is None else np.minimum(inside, e, out=inside)
+    k, r, c = np.nonzero(inside >= 0)
+    col, row = x0[m][k] + c, y0[m][k] + r
+    keep = (col < width) & (row < height)
+    k, r, c, col, row = k[keep], r[keep], c[keep], col[keep], row[keep]
+    mk = m[k]
+    inv_depth = depth_plane[0][mk] * c + depth_plane[1][mk] * r + depth_plane[2][mk]
     good = inv_depth > 0
     depth = 1.0 / np.where(good, inv_depth, 1.0)
-    pix = row * width + col
-    return Fragments(pix[good], keys(depth[good], ids[n[good]]))
+    return Fragments((row * width + col)[good], keys(depth[good], ids[mk[good]]))
 
 
 def triangle_barycentrics(xy: np.ndarray, z: np.ndarray, faces: np.ndarray, face: np.ndarray,

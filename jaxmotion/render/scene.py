@@ -67,13 +67,19 @@ class BackgroundPicture:
         self.cam, self.rgb, self.depth, self.world = cam, rgb, depth, world
         self._receivers = None
 
-    def receivers(self) -> tuple[np.ndarray, np.ndarray]:
-        """Flat pixel indices ``[R]`` that show a world point, and those points ``[R, 3]``."""
+    def receivers(self, lo, hi) -> tuple[np.ndarray, np.ndarray]:
+        """The flat pixel indices ``[R]`` that show a world point with ``lo ≤ (x, y) < hi``,
+        and those points ``[R, 3]`` (the pixels sorted by x once, then searched)."""
         if self._receivers is None:
             flat = self.world.reshape(-1, 3)
             pix = np.flatnonzero(np.isfinite(flat[:, 0]))
+            pix = pix[np.argsort(flat[pix, 0], kind="stable")]
             self._receivers = (pix, flat[pix])
-        return self._receivers
+        pix, xyz = self._receivers
+        a, b = np.searchsorted(xyz[:, 0], [lo[0], hi[0]])
+        y = xyz[a:b, 1]
+        sel = np.flatnonzero((y >= lo[1]) & (y < hi[1])) + a
+        return pix[sel], xyz[sel]
 
     def crop(self, cam: Camera) -> BackgroundPicture:
         """The picture seen by ``cam``: this camera's eye and direction, another focal length
@@ -337,41 +343,51 @@ class ShadowMap:
     def __init__(self, vertices: np.ndarray, light: np.ndarray, cell: float = 0.02):
         from scipy.ndimage import gaussian_filter, minimum_filter
 
-        v = np.asarray(vertices, np.float64)
+        v = np.asarray(vertices, np.float32)
         self.cell = cell
         # the drop shadow: vertices slid along the light onto the floor
-        drop = v[:, :2] - v[:, 2:3] * (light[:2] / max(light[2], 0.2))
-        lo = np.minimum(v[:, :2].min(0), drop.min(0)) - 0.4
-        hi = np.maximum(v[:, :2].max(0), drop.max(0)) + 0.4
-        self.origin = lo
-        self.shape = tuple(np.ceil((hi - lo) / cell).astype(int) + 1)
-        gx, gy = self.shape
+        drop = v[:, :2] - v[:, 2:3] * (light[:2] / max(light[2], 0.2)).astype(np.float32)
+        lo = np.minimum(v[:, :2].min(0), drop.min(0)) - 0.3
+        hi = np.maximum(v[:, :2].max(0), drop.max(0)) + 0.3
+        self.origin = lo.astype(np.float64)
+        gx, gy = (int(n) for n in np.ceil((hi - lo) / cell) + 1)
+        self.shape = (gx, gy)
 
         def cells(xy):
-            ij = np.floor((xy - lo) / cell).astype(np.int64)
+            ij = ((xy - lo) / cell).astype(np.int64)
             return np.clip(ij[:, 0], 0, gx - 1) * gy + np.clip(ij[:, 1], 0, gy - 1)
 
         c = cells(v[:, :2])
-        count = np.bincount(c, minlength=gx * gy).reshape(gx, gy).astype(np.float32)
         low = np.full(gx * gy, np.inf, np.float32)
-        np.minimum.at(low, c, v[:, 2].astype(np.float32))
+        np.minimum.at(low, c, v[:, 2])
+        occupied = np.isfinite(low).reshape(gx, gy)
         low = minimum_filter(low.reshape(gx, gy), size=5, mode="nearest")
-        self.low = np.where(np.isfinite(low), low, 1e3).astype(np.float32)
-        self.cover = np.clip(gaussian_filter((count > 0).astype(np.float32), 2.5 / cell * 0.02
-                                             * 1.5, mode="constant") * 1.6, 0.0, 1.0)
-        dc = np.bincount(cells(drop), minlength=gx * gy).reshape(gx, gy) > 0
-        self.drop = np.clip(gaussian_filter(dc.astype(np.float32), 0.07 / cell,
-                                            mode="constant") * 1.4, 0.0, 1.0)
+        self.low = np.where(np.isfinite(low), low, np.float32(1e3))
+        self.cover = np.minimum(gaussian_filter(occupied.astype(np.float32), 0.045 / cell,
+                                                mode="constant") * 1.6, 1.0)
+        dc = np.zeros(gx * gy, np.float32)
+        dc[cells(drop)] = 1.0
+        self.drop = np.minimum(gaussian_filter(dc.reshape(gx, gy), 0.07 / cell,
+                                               mode="constant") * 1.4, 1.0)
+        # the box (world xy) outside which nothing darkens
+        some = np.argwhere((self.cover > 0.01) | (self.drop > 0.01))
+        if len(some):
+            self.box = (self.origin + some.min(0) * cell, self.origin + (some.max(0) + 1) * cell)
+        else:
+            self.box = (self.origin, self.origin)
 
     def factor(self, xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Shading factors in (0, 1] for receivers ``xyz [R, 3]`` inside the grid, and which
         receivers those are (indices)."""
-        ij = np.floor((xyz[:, :2] - self.origin) / self.cell).astype(np.int64)
+        ij = ((xyz[:, :2] - self.origin.astype(np.float32)) / np.float32(self.cell))
+        ij = np.floor(ij).astype(np.int64)
         inside = np.flatnonzero((ij[:, 0] >= 0) & (ij[:, 0] < self.shape[0]) & (ij[:, 1] >= 0)
                                 & (ij[:, 1] < self.shape[1]))
         i, j = ij[inside, 0], ij[inside, 1]
-        gap = self.low[i, j] - xyz[inside, 2]
-        contact = self.cover[i, j] * np.exp(-np.maximum(gap, 0.0) / 0.25) * (gap > -0.05)
-        drop = self.drop[i, j] * (np.abs(xyz[inside, 2]) < 0.05)
+        z = xyz[inside, 2]
+        gap = self.low[i, j] - z
+        contact = self.cover[i, j] * np.exp(-np.maximum(gap, 0.0) / np.float32(0.25))
+        contact *= gap > -0.05
+        drop = self.drop[i, j] * (np.abs(z) < 0.05)
         f = (1.0 - 0.55 * contact) * (1.0 - 0.28 * drop)
         return f.astype(np.float32), inside

@@ -44,6 +44,7 @@ SUPERSAMPLE = 2  # bodies are drawn at this many times the picture's size, then 
 SAMPLE_LAYOUTS = ("overlay", "grid")
 _BG_ID = 0xFFFF_FFFD  # the room's pixels in the body pass's z-buffer
 _SHADOW_STRIDE = 3  # every 3rd body vertex casts the shadows
+_GHOST = 0.35  # opacity of the faint bodies of a still
 MAX_ROOM_PIXELS = 4_000_000  # a follow camera's room picture is at most this large
 
 
@@ -139,8 +140,9 @@ class Clip:
 
     # ---------------------------------------------------------------- one frame
 
-    def draw(self, f: int) -> np.ndarray:
-        """Frame ``f`` (an index into the motion's T frames): ``uint8 [H, W, 3]``."""
+    def draw(self, f: int, ghosts=()) -> np.ndarray:
+        """Frame ``f`` (an index into the motion's T frames): ``uint8 [H, W, 3]``; the bodies
+        of the frames ``ghosts`` are drawn faintly behind (same camera, see-through)."""
         f = int(f)
         bg = self._background(f)
         cam = self.cameras[f]
@@ -152,6 +154,10 @@ class Clip:
         for tile, members in enumerate(groups):
             rgb = bg.rgb.copy()
             self._shadows(rgb, bg, verts[members])
+            for g in ghosts:
+                layer = rgb.copy()
+                self._bodies(layer, bg.depth, cam, self.bodies.frame(g), members)
+                rgb += _GHOST * (layer - rgb)
             self._bodies(rgb, bg.depth, cam, verts, members)
             c, r = tile % self.grid[0], tile // self.grid[0]
             out[r * th:(r + 1) * th, c * tw:(c + 1) * tw] = _to_uint8(rgb)
@@ -159,7 +165,7 @@ class Clip:
 
     def _shadows(self, rgb: np.ndarray, bg, verts: np.ndarray) -> None:
         shadow = ShadowMap(verts[:, ::_SHADOW_STRIDE].reshape(-1, 3), self.light)
-        pix, xyz = bg.receivers(*shadow.box)
+        pix, xyz = bg.receivers(*shadow.box, top=float(verts[..., 2].max()))
         if len(pix):
             factor, inside = shadow.factor(xyz)
             rgb.reshape(-1, 3)[pix[inside]] *= factor[:, None]
@@ -352,7 +358,8 @@ def render_video(path, clip: Clip, *, video_fps: float | None = None,
 
 def render_still(path_png, clip: Clip, *, frame: int | None = None, ghosts: int = 0) -> Path:
     """One PNG of ``clip`` at ``frame`` (None: the last), atomically. ``ghosts`` > 0 also
-    draws that many earlier poses, evenly spread over the clip, faintly behind."""
+    draws the bodies of that many other frames, evenly spread over the clip, faintly (for a
+    fixed camera: one picture that shows where the motion went)."""
     import io
 
     from PIL import Image
@@ -365,27 +372,12 @@ def render_still(path_png, clip: Clip, *, frame: int | None = None, ghosts: int 
     if not -t <= frame < t:
         raise ValueError(f"frame must be in [-{t}, {t}), got {frame}")
     frame %= t
-    img = clip.draw(frame).astype(np.float32)
-    if ghosts > 0 and clip.layout == "overlay" and clip.mode == "fixed":
-        bg = clip._background(frame)
-        base = bg.rgb.copy()
-        clip._shadows(base, bg, clip.bodies.frame(frame))
-        for g in np.linspace(0, frame, ghosts + 2)[1:-1].round().astype(int):
-            layer = base.copy()
-            clip._bodies(layer, bg.depth, clip.cameras[frame], clip.bodies.frame(g),
-                         list(range(clip.bodies.num_samples)))
-            moved = np.abs(layer - base).sum(-1) > 1e-4
-            h, w = moved.shape
-            sub = img[:h, :w]
-            sub[moved] = 0.6 * sub[moved] + 0.4 * 255 * layer[moved]
-        bold = base.copy()
-        clip._bodies(bold, bg.depth, clip.cameras[frame], clip.bodies.frame(frame),
-                     list(range(clip.bodies.num_samples)))
-        mask = np.abs(bold - base).sum(-1) > 1e-4
-        img[:h, :w][mask] = 255 * bold[mask]
-        img = clip._annotate(_to_uint8(img / 255.0), frame, None).astype(np.float32)
+    others = []
+    if ghosts > 0 and clip.mode == "fixed":
+        spread = np.linspace(0, t - 1, ghosts + 1).round().astype(int)
+        others = [int(g) for g in spread if g != frame][:ghosts]
     buf = io.BytesIO()
-    Image.fromarray(np.clip(img, 0, 255).astype(np.uint8)).save(buf, format="PNG")
+    Image.fromarray(clip.draw(frame, others)).save(buf, format="PNG")
     with atomic_open(path, "wb") as fh:
         fh.write(buf.getvalue())
     return path

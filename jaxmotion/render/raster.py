@@ -7,8 +7,9 @@ fragment, and one ``np.minimum.at`` resolves the depth test and names the winner
 (:func:`resolve`); shading then runs once per visible pixel (deferred), not per fragment.
 
 Coverage follows the usual rule: a pixel ``(i, j)`` (column, row; y down) is covered when its
-centre ``(i + 0.5, j + 0.5)`` lies inside the projected triangle (edges included), so a closed
-mesh leaves no holes however small its triangles. Depth is interpolated perspective-correctly:
+centre ``(i + 0.5, j + 0.5)`` lies inside the projected triangle (edges included, with a
+margin of 3e-5 in barycentric units for float32 rounding), so a closed mesh leaves no holes
+however small its triangles. Depth is interpolated perspective-correctly:
 ``1/z`` is linear in screen space. Triangles are grouped by the longer side of their
 pixel bounding box (1, 2, 3, 4, 6, 8, 12, ...) and each group is tested as one ``[m, n, n]``
 array of float32 edge functions, so a body of
@@ -38,6 +39,10 @@ __all__ = [
 EMPTY_KEY = np.uint64(0xFFFF_FFFF_FFFF_FFFF)  # no fragment: farther than anything
 _ID_MASK = np.uint64(0xFFFF_FFFF)
 _MAX_CANDIDATES = 1 << 21  # candidate pixels tested in one array pass (memory bound)
+# A pixel centre on an edge shared by two triangles must not fall out of both to float32
+# rounding: centres within this much of an edge (in barycentric units) count as inside,
+# so such a pixel gets two fragments and the depth test keeps one.
+_EDGE_EPS = np.float32(3e-5)
 
 
 class Fragments:
@@ -175,7 +180,7 @@ def _triangle_bucket(n, m, planes, depth_plane, x0, y0, ids, width, height) -> F
     for a, b, c in planes:  # E = (b dy + c) [m, n, 1] + (a dx) [m, 1, n]
         e = (b[m, None] * off + c[m, None])[:, :, None] + (a[m, None] * off)[:, None, :]
         inside = e if inside is None else np.minimum(inside, e, out=inside)
-    k, r, c = np.nonzero(inside >= 0)
+    k, r, c = np.nonzero(inside >= -_EDGE_EPS)
     col, row = x0[m][k] + c, y0[m][k] + r
     keep = (col < width) & (row < height)
     k, r, c, col, row = k[keep], r[keep], c[keep], col[keep], row[keep]

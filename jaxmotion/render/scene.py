@@ -14,8 +14,8 @@ near the motion (a *cutaway*: points above the motion + 0.5 m and points between
 the motion above 12 cm are left out, so neither ceiling nor near walls and furniture hide the
 body), an infinite floor plane at z = 0 behind them (the scene's own floor points win), and
 eye-dome lighting (EDL, a darkening where the depth steps away from the eye: the outlines
-that make chairs readable against the floor in a point cloud). It also returns what the
-shadows need: the world position of every pixel that can receive one.
+that make chairs readable against the floor in a point cloud). Its depth gives the shadows
+the world point of every pixel that can receive one.
 
 :class:`ShadowMap` darkens those pixels under the bodies of a frame: a grid of 2 cm cells
 records how much body lies above each cell and its lowest point; a receiver at height ``z``
@@ -57,49 +57,65 @@ def light_direction(cam: Camera) -> np.ndarray:
 
 
 class BackgroundPicture:
-    """The room drawn from one camera ``cam``: ``rgb [H, W, 3]`` float32 in [0, 1],
-    ``depth [H, W]`` float32 (inf where nothing is drawn) and the world point seen at each
-    pixel, ``world [H, W, 3]`` float32 (NaN where none: the shadows' receivers)."""
+    """The room drawn from one camera ``cam``: ``rgb [H, W, 3]`` float32 in [0, 1] and
+    ``depth [H, W]`` float32 (inf where nothing is drawn)."""
 
-    __slots__ = ("_receivers", "cam", "depth", "rgb", "world")
+    __slots__ = ("cam", "depth", "rgb")
 
-    def __init__(self, cam: Camera, rgb, depth, world):
-        self.cam, self.rgb, self.depth, self.world = cam, rgb, depth, world
-        self._receivers = None
+    def __init__(self, cam: Camera, rgb, depth):
+        self.cam, self.rgb, self.depth = cam, rgb, depth
 
-    def receivers(self, lo, hi) -> tuple[np.ndarray, np.ndarray]:
-        """The flat pixel indices ``[R]`` that show a world point with ``lo ≤ (x, y) < hi``,
-        and those points ``[R, 3]`` (the pixels sorted by x once, then searched)."""
-        if self._receivers is None:
-            flat = self.world.reshape(-1, 3)
-            pix = np.flatnonzero(np.isfinite(flat[:, 0]))
-            pix = pix[np.argsort(flat[pix, 0], kind="stable")]
-            self._receivers = (pix, flat[pix])
-        pix, xyz = self._receivers
-        a, b = np.searchsorted(xyz[:, 0], [lo[0], hi[0]])
-        y = xyz[a:b, 1]
-        sel = np.flatnonzero((y >= lo[1]) & (y < hi[1])) + a
-        return pix[sel], xyz[sel]
+    def receivers(self, lo, hi, top: float) -> tuple[np.ndarray, np.ndarray]:
+        """The pixels that show a world point inside the box ``lo ≤ (x, y) < hi``, z ≤ ``top``:
+        flat indices ``[R]`` and the points ``[R, 3]`` float32 (from the depth: each pixel's
+        own point of a surface, not its splat's centre). Only the box's picture is searched."""
+        cam = self.cam
+        box = np.array([[(lo[0], hi[0])[k & 1], (lo[1], hi[1])[k >> 1 & 1], (-0.1, top)[k >> 2]]
+                        for k in range(8)])
+        xy, z = cam.project(box)
+        if np.all(z > 1e-3):
+            x0, y0 = np.maximum(np.floor(xy.min(0)).astype(int), 0)
+            x1, y1 = np.minimum(np.ceil(xy.max(0)).astype(int) + 1, [cam.width, cam.height])
+        else:
+            x0 = y0 = 0
+            x1, y1 = cam.width, cam.height
+        if x1 <= x0 or y1 <= y0:
+            return np.zeros(0, np.int64), np.zeros((0, 3), np.float32)
+        d = self.depth[y0:y1, x0:x1]
+        r, c = np.nonzero(np.isfinite(d))
+        dd = d[r, c]
+        u = ((c + x0 + 0.5 - cam.cx) / cam.focal).astype(np.float32)
+        v = ((r + y0 + 0.5 - cam.cy) / cam.focal).astype(np.float32)
+        rot = cam.rot.astype(np.float32)
+        p = cam.eye.astype(np.float32) + dd[:, None] * (u[:, None] * rot[0] + v[:, None] * rot[1]
+                                                       + rot[2])
+        inside = np.flatnonzero((p[:, 0] >= lo[0]) & (p[:, 0] < hi[0]) & (p[:, 1] >= lo[1])
+                                & (p[:, 1] < hi[1]) & (p[:, 2] <= top))
+        return (r[inside] + y0) * cam.width + c[inside] + x0, p[inside]
 
     def crop(self, cam: Camera) -> BackgroundPicture:
         """The picture seen by ``cam``: this camera's eye and direction, another focal length
-        and principal point (an off-axis crop, resampled: colours bilinearly, depth and
-        world points from the nearest pixel)."""
+        and principal point (an off-axis crop, resampled: colours bilinearly, depth from the
+        nearest pixel)."""
         from PIL import Image
 
         src = self.cam
         k = src.focal / cam.focal
         # frame pixel centre i + 0.5 ↦ source coordinate cx_s + k (i + 0.5 − cx)
-        box = (src.cx - k * cam.cx, src.cy - k * cam.cy,
-               src.cx + k * (cam.width - cam.cx), src.cy + k * (cam.height - cam.cy))
+        x0, y0 = src.cx - k * cam.cx, src.cy - k * cam.cy
+        x1, y1 = src.cx + k * (cam.width - cam.cx), src.cy + k * (cam.height - cam.cy)
+        # a crop reaching a hair past the picture (rounding) is nudged back inside
+        dx = max(0.0, -x0) - max(0.0, x1 - src.width)
+        dy = max(0.0, -y0) - max(0.0, y1 - src.height)
+        box = (max(0.0, x0 + dx), max(0.0, y0 + dy), min(float(src.width), x1 + dx),
+               min(float(src.height), y1 + dy))
         img = Image.fromarray(np.clip(self.rgb * 255 + 0.5, 0, 255).astype(np.uint8))
         rgb = np.asarray(img.resize((cam.width, cam.height), Image.BILINEAR, box=box),
                          np.float32) / 255.0
         ix = np.floor(src.cx + k * (np.arange(cam.width) + 0.5 - cam.cx)).astype(np.int64)
         iy = np.floor(src.cy + k * (np.arange(cam.height) + 0.5 - cam.cy)).astype(np.int64)
         ix, iy = np.clip(ix, 0, src.width - 1), np.clip(iy, 0, src.height - 1)
-        return BackgroundPicture(cam, rgb, self.depth[np.ix_(iy, ix)],
-                                 self.world[np.ix_(iy, ix)])
+        return BackgroundPicture(cam, rgb, self.depth[np.ix_(iy, ix)])
 
 
 class SceneLayer:
@@ -200,29 +216,22 @@ class SceneLayer:
         depth = raster.depth_of_keys(buf)
         ids = raster.id_of_keys(buf)
         point = np.flatnonzero((ids >= 0) & (ids < len(sel)))
-        world = np.full((w * h, 3), np.nan, np.float32)
         rgb = np.empty((w * h, 3), np.float32)
         rgb[:] = SKY
         rgb[point] = self.colour[sel[ids[point]]]
-        world[point] = self.xyz[sel[ids[point]]]
         if self.floor:
             on = np.flatnonzero(ids == _FLOOR_ID)
             depth[on] -= np.float32(0.01)
-            hit = _floor_points(big, on, depth[on])
-            rgb[on] = _floor_colour(hit, target)
-            world[on] = hit
+            rgb[on] = _floor_colour(_floor_points(big, on, depth[on]), target)
         rgb = rgb.reshape(h, w, 3)
         depth = depth.reshape(h, w)
-        world = world.reshape(h, w, 3)
         rgb *= _eye_dome(depth)[..., None]
         if supersample > 1:
             s = supersample
             rgb = rgb.reshape(cam.height, s, cam.width, s, 3).mean((1, 3))
             depth = depth.reshape(cam.height, s, cam.width, s).min((1, 3))
-            world = world[::s, ::s]  # one receiver per pixel: its top-left sample
         return BackgroundPicture(cam, np.ascontiguousarray(rgb, np.float32),
-                                 np.ascontiguousarray(depth, np.float32),
-                                 np.ascontiguousarray(world))
+                                 np.ascontiguousarray(depth, np.float32))
 
 
 def _pca_normals(xyz: np.ndarray, neighbours: np.ndarray) -> np.ndarray:
@@ -377,17 +386,25 @@ class ShadowMap:
             self.box = (self.origin, self.origin)
 
     def factor(self, xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Shading factors in (0, 1] for receivers ``xyz [R, 3]`` inside the grid, and which
-        receivers those are (indices)."""
-        ij = ((xyz[:, :2] - self.origin.astype(np.float32)) / np.float32(self.cell))
-        ij = np.floor(ij).astype(np.int64)
-        inside = np.flatnonzero((ij[:, 0] >= 0) & (ij[:, 0] < self.shape[0]) & (ij[:, 1] >= 0)
-                                & (ij[:, 1] < self.shape[1]))
-        i, j = ij[inside, 0], ij[inside, 1]
+        """Shading factors in (0, 1] for receivers ``xyz [R, 3]`` inside the grid (its maps
+        interpolated bilinearly between cell centres), and which receivers those are."""
+        g = (xyz[:, :2] - self.origin.astype(np.float32)) / np.float32(self.cell) - 0.5
+        gx, gy = self.shape
+        inside = np.flatnonzero((g[:, 0] >= 0) & (g[:, 0] < gx - 1) & (g[:, 1] >= 0)
+                                & (g[:, 1] < gy - 1))
+        g = g[inside]
+        i, j = g[:, 0].astype(np.int64), g[:, 1].astype(np.int64)
+        fx, fy = g[:, 0] - i, g[:, 1] - j
+        corners = ((i, j, (1 - fx) * (1 - fy)), (i + 1, j, fx * (1 - fy)),
+                   (i, j + 1, (1 - fx) * fy), (i + 1, j + 1, fx * fy))
+
+        def sample(grid):
+            return sum(w * grid[a, b] for a, b, w in corners)
+
         z = xyz[inside, 2]
-        gap = self.low[i, j] - z
-        contact = self.cover[i, j] * np.exp(-np.maximum(gap, 0.0) / np.float32(0.25))
+        gap = sample(self.low) - z
+        contact = sample(self.cover) * np.exp(-np.maximum(gap, 0.0) / np.float32(0.25))
         contact *= gap > -0.05
-        drop = self.drop[i, j] * (np.abs(z) < 0.05)
+        drop = sample(self.drop) * (np.abs(z) < 0.05)
         f = (1.0 - 0.55 * contact) * (1.0 - 0.28 * drop)
         return f.astype(np.float32), inside

@@ -284,8 +284,10 @@ def _cmd_render(args: argparse.Namespace) -> int:
     if not Path(args.motion).is_file():
         raise FileNotFoundError(f"{args.motion}: no such file; give a motion.npz written by "
                                 "'jaxmotion generate' or a dataset sample .npz")
+    from jaxmotion._jax_setup import enable_compilation_cache
     from jaxmotion.render.results import render_saved
 
+    enable_compilation_cache()  # the mannequin's shape basis at the motion's betas is kept there
     t0 = time.perf_counter()
     path = render_saved(args.motion, out, scene=args.scene, num_points=args.points, size=size,
                         samples=args.samples, camera=args.camera, azimuth=args.azimuth,

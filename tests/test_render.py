@@ -197,7 +197,7 @@ def test_a_frame_shows_the_body_where_its_vertices_project():
     clip = _clip(size=(160, 120))
     img = clip.draw(2).astype(float) / 255
     assert img.shape == (120, 160, 3)
-    xy, z = clip.cameras[2].project(clip.bodies.frame(2)[0])
+    xy, _ = clip.cameras[2].project(clip.bodies.frame(2)[0])
     col, row = np.floor(xy).astype(int).T
     assert col.min() > 0 and col.max() < 159 and row.min() > 0 and row.max() < 119
 

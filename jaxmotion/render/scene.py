@@ -4,8 +4,9 @@
 
 - **splat sizes**: each point's disc radius is its distance to its 4th-nearest neighbour
   (clipped to [4 mm, 6 cm]), so a surface sampled at any density reads as closed;
-- **normals**: the scene's own where it has them, else the smallest principal axis of the 8
-  nearest neighbours (sign unknown: the points are lit two-sided);
+- **normals**: the scene's own where it has them, else the smallest principal axis of the 12
+  nearest neighbours (sign unknown: the points are lit two-sided; upright surfaces near the
+  sides of the points' box, a scan's walls, are turned to face the room);
 - **colours**: ``rgb · (ambient + key · |n · l|)`` with the light fixed for the clip, the
   target object's points tinted with :data:`HIGHLIGHT`.
 
@@ -145,12 +146,17 @@ class SceneLayer:
             from scipy.spatial import cKDTree
 
             tree = cKDTree(self.xyz)
-            d, nb = tree.query(self.xyz, k=9)
-            self.radius = np.clip(d[:, 6], 0.004, 0.10)
             unknown = np.abs(normal).sum(1) == 0
+            d, nb = tree.query(self.xyz, k=13 if unknown.any() else 7)
+            self.radius = np.clip(d[:, 6], 0.004, 0.10)
             if unknown.any():
                 normal = normal.copy()
                 normal[unknown] = _pca_normals(self.xyz, nb[unknown])
+                walls = _wall_points(self.xyz, normal) & unknown
+                centre = (self.xyz.min(0) + self.xyz.max(0)) / 2
+                inward = ((centre - self.xyz[walls])[:, :2] * normal[walls, :2]).sum(1)
+                normal[walls] *= np.where(inward < 0, -1.0, 1.0)[:, None]
+                self.oriented |= walls
         self.normal = normal
         lit = np.abs(normal @ light)
         shade = np.where(np.abs(normal).sum(1) > 0, 0.62 + 0.45 * lit, 0.9)
@@ -234,9 +240,18 @@ class SceneLayer:
                                  np.ascontiguousarray(depth, np.float32))
 
 
+def _wall_points(xyz: np.ndarray, normal: np.ndarray, reach: float = 0.25) -> np.ndarray:
+    """``[N]`` bool: upright surfaces within ``reach`` of a side of the points' box in xy (a
+    scan's walls; their normals are then turned to face the room, so that from outside the
+    near walls are seen from behind and left out)."""
+    lo, hi = xyz[:, :2].min(0), xyz[:, :2].max(0)
+    side = np.minimum(xyz[:, :2] - lo, hi - xyz[:, :2]).min(1)
+    return (np.abs(normal[:, 2]) < 0.35) & (side < reach)
+
+
 def _pca_normals(xyz: np.ndarray, neighbours: np.ndarray) -> np.ndarray:
     """Unit normals from the neighbours' covariance (smallest eigenvector), sign arbitrary."""
-    q = xyz[neighbours[:, :9]]
+    q = xyz[neighbours]
     q = q - q.mean(1, keepdims=True)
     cov = np.einsum("nki,nkj->nij", q, q)
     _, vec = np.linalg.eigh(cov)

@@ -68,7 +68,7 @@ _DOT = 1.5  # scene dot side (a marker of s=1: 1 pt ≈ 1.4 px)
 _BODY_DOT = 2.0  # body dot side (s=2)
 _BONE = 3.0  # bone width (2.2 pt)
 _CAPTION_PX, _CLOCK_PX = 12.5, 11.0  # font sizes (9 pt and 8 pt)
-_GIF_MAX_FPS = 50.0  # browsers slow down GIF frames shorter than 20 ms
+GIF_MAX_FPS = 50.0  # browsers slow down GIF frames shorter than 20 ms
 _EMPTY = (math.inf, math.inf, -math.inf, -math.inf)  # an empty box (x0, y0, x1, y1)
 
 
@@ -158,7 +158,7 @@ def render_motion_video(
 
     stride = math.ceil(t / max_frames)
     if suffix == ".gif":
-        stride = max(stride, math.ceil(fps / _GIF_MAX_FPS - 1e-9))
+        stride = max(stride, math.ceil(fps / GIF_MAX_FPS - 1e-9))
     frames = np.arange(0, t, stride)
     out_fps = fps / stride
 
@@ -166,7 +166,7 @@ def render_motion_video(
 
     cam = Camera(j, width, height)
     background = cam.background(xyz, rgb, max_points, seed, text)
-    clock_font = _font(_CLOCK_PX * SUPERSAMPLE)
+    clock_font = caption_font(_CLOCK_PX * SUPERSAMPLE)
     images, boxes = [], []  # frames, and the box (x0, y0, x1, y1) where each differs from
     for f in frames:  # the still scene (output pixels)
         canvas = background.copy()
@@ -200,7 +200,7 @@ def render_motion_video(
         exact = [(255, 255, 255), (0, 0, 0)]
         exact += [_rgb8(PALETTE[s % len(PALETTE)]) for s in range(min(k, len(PALETTE)))]
         still = np.asarray(Image.fromarray(background).reduce(SUPERSAMPLE))
-        data = _gif_bytes(images, boxes, still, out_fps, exact)
+        data = gif_bytes(images, boxes, still, out_fps, exact)
     else:
         import imageio.v3 as iio
 
@@ -320,7 +320,7 @@ def _rgb8(colour) -> tuple[int, int, int]:
 
 
 @functools.lru_cache(maxsize=8)
-def _font(px: float):
+def caption_font(px: float):
     from PIL import ImageFont
 
     try:
@@ -399,8 +399,8 @@ class Camera:
             from PIL import Image, ImageDraw
 
             im = Image.fromarray(img)
-            font = _font(_CAPTION_PX * SUPERSAMPLE)
-            lines = _wrap(text, font, 0.96 * self.width)
+            font = caption_font(_CAPTION_PX * SUPERSAMPLE)
+            lines = wrap_text(text, font, 0.96 * self.width)
             ImageDraw.Draw(im).multiline_text(
                 (0.02 * self.width, 0.02 * self.height), "\n".join(lines), fill=(0, 0, 0), font=font
             )
@@ -448,7 +448,7 @@ class Camera:
         return (*(xy.min(0) - w), *(xy.max(0) + w + 1))
 
 
-def _wrap(text: str, font, width: float) -> list[str]:
+def wrap_text(text: str, font, width: float) -> list[str]:
     """``text`` broken at spaces into lines at most ``width`` pixels long (long words kept)."""
     lines = []
     for para in text.splitlines() or [""]:
@@ -464,7 +464,7 @@ def _wrap(text: str, font, width: float) -> list[str]:
     return lines
 
 
-def _gif_bytes(images: list[np.ndarray], boxes, still: np.ndarray, fps: float, exact) -> bytes:
+def gif_bytes(images: list[np.ndarray], boxes, still: np.ndarray, fps: float, exact) -> bytes:
     """Animated GIF of RGB frames: one shared palette, frame times summing to the clip's.
 
     The palette has the colours ``exact`` (white, black, the skeletons') and a median cut

@@ -123,7 +123,7 @@ def fit_distance(points: np.ndarray, target: np.ndarray, azimuth: float, elevati
     return max(1.5, float(need.max()))
 
 
-def _frame_box(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def frame_box(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Target (centre of the joints' box) and the box's corners, padded by a body's reach."""
     flat = joints.reshape(-1, 3)
     lo, hi = flat.min(0) - [0.25, 0.25, 0.0], flat.max(0) + [0.25, 0.25, 0.2]
@@ -147,7 +147,7 @@ def choose_azimuth(joints: np.ndarray, scene_xyz: np.ndarray | None = None,
     across /= np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-9)
     facing = np.array([across[:, 1].mean(), -across[:, 0].mean()])  # 90° to the right: front
     facing /= max(np.linalg.norm(facing), 1e-9)
-    centre, corners = _frame_box(joints)
+    centre, corners = frame_box(joints)
     radius = 0.5 * float(np.linalg.norm(corners.max(0)[:2] - corners.min(0)[:2])) + 0.3
     near = None
     if scene_xyz is not None and len(scene_xyz):
@@ -210,7 +210,7 @@ def plan_cameras(joints: np.ndarray, fps: float, width: int, height: int, *,
     t = j.shape[1]
     if azimuth is None:
         azimuth = choose_azimuth(j, scene_xyz, elevation)
-    centre, corners = _frame_box(j)
+    centre, corners = frame_box(j)
     whole = fit_distance(corners, centre, azimuth, elevation, width, height)
     base = Camera.look(centre, azimuth, elevation, whole, width, height)
     body_fraction = _BODY_HEIGHT * base.focal / whole / height
@@ -220,7 +220,7 @@ def plan_cameras(joints: np.ndarray, fps: float, width: int, height: int, *,
     half = max(1, round(FOLLOW_WINDOW_S * fps / 2))
     boxes = np.empty((t, 4))
     for f in range(t):
-        _, box = _frame_box(j[:, max(0, f - half): f + half + 1])
+        _, box = frame_box(j[:, max(0, f - half): f + half + 1])
         xy, _ = base.project(box)
         boxes[f] = [*xy.min(0), *xy.max(0)]
     extent = np.maximum(boxes[:, 2:] - boxes[:, :2], 1.0)

@@ -34,7 +34,7 @@ from jaxmotion._atomic import atomic_open
 from jaxmotion.export._common import PALETTE
 from jaxmotion.render import raster
 from jaxmotion.render.body import Bodies, face_incidence, vertex_normals
-from jaxmotion.render.camera import ELEVATION_DEG, Camera, _frame_box, plan_cameras, rotate
+from jaxmotion.render.camera import ELEVATION_DEG, Camera, frame_box, plan_cameras, rotate
 from jaxmotion.render.scene import CutawayHoles, SceneLayer, ShadowMap, light_direction
 
 __all__ = ["SAMPLE_LAYOUTS", "SUPERSAMPLE", "Clip", "body_colour", "render_still",
@@ -118,7 +118,7 @@ class Clip:
         """The room from the base camera (drawn once; see ``SceneLayer.background``)."""
         if self._room is None:
             base = self.plan.base
-            centre, _ = _frame_box(self.joints)
+            centre, _ = frame_box(self.joints)
             back = -base.rot[2, :2] / max(float(np.linalg.norm(base.rot[2, :2])), 1e-9)
             reach = float(((self.joints[..., :2] - centre[:2]) @ back).max()) + 0.3
             step = max(1, self.joints.shape[1] // 40)
@@ -225,21 +225,21 @@ class Clip:
     def _annotate(self, img: np.ndarray, f: int, tile_samples) -> np.ndarray:
         from PIL import Image, ImageDraw
 
-        from jaxmotion.export.video import _font, _wrap
+        from jaxmotion.export.video import caption_font, wrap_text
 
         im = Image.fromarray(img)
         draw = ImageDraw.Draw(im, "RGBA")
         scale = max(self.width, self.height) / 640
         if self.text:
-            font = _font(13.0 * scale)
-            lines = _wrap(self.text, font, 0.9 * self.width)
+            font = caption_font(13.0 * scale)
+            lines = wrap_text(self.text, font, 0.9 * self.width)
             pos = (0.02 * self.width, 0.02 * self.height)
             box = draw.multiline_textbbox(pos, "\n".join(lines), font=font)
             pad = 4 * scale
             draw.rectangle([box[0] - pad, box[1] - pad, box[2] + pad, box[3] + pad],
                            fill=(255, 255, 255, 190))
             draw.multiline_text(pos, "\n".join(lines), fill=(20, 20, 20), font=font)
-        font = _font(11.0 * scale)
+        font = caption_font(11.0 * scale)
         clock = f"{f / self.fps:5.2f} s"
         pos = (0.98 * self.width, 0.98 * self.height)
         box = draw.textbbox(pos, clock, font=font, anchor="rd")
@@ -311,19 +311,19 @@ def render_video(path, clip: Clip, *, video_fps: float | None = None,
     Frames are drawn at a whole stride of the motion's: ``video_fps`` (None: every frame),
     also at most ``max_frames`` frames; the clip keeps the motion's duration.
     """
-    from jaxmotion.export.video import _GIF_MAX_FPS, _gif_bytes
+    from jaxmotion.export.video import GIF_MAX_FPS, gif_bytes
 
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".mp4", ".gif"):
         raise ValueError(f"render_video writes .mp4 or .gif, got {path.name!r}")
     if suffix == ".gif":
-        video_fps = min(video_fps or clip.fps, _GIF_MAX_FPS)
+        video_fps = min(video_fps or clip.fps, GIF_MAX_FPS)
     frames, out_fps = _frame_indices(clip.bodies.num_frames, clip.fps, video_fps, max_frames)
     if suffix == ".gif":
         images = [clip.draw(f) for f in frames]
         box = (0, 0, clip.width, clip.height)
-        data = _gif_bytes(images, [box] * len(images), images[0], out_fps,
+        data = gif_bytes(images, [box] * len(images), images[0], out_fps,
                           [(255, 255, 255), (20, 20, 20)])
         with atomic_open(path, "wb") as fh:
             fh.write(data)

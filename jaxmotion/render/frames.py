@@ -3,14 +3,15 @@
 :class:`Clip` holds what one rendering needs (bodies, joints for the camera, the room layer,
 options) and draws frame ``f`` as ``uint8 [H, W, 3]`` (:meth:`Clip.draw`):
 
-1. the room from the frame's camera (:class:`~jaxmotion.render.scene.SceneLayer`; drawn once
-   for a fixed camera, at twice the size and reduced; every frame at the picture's size for a
-   following one);
+1. the room (:class:`~jaxmotion.render.scene.SceneLayer`), drawn once per clip from the base
+   camera (at ``room_supersample`` times the size and reduced, for stills); a following
+   camera crops each frame out of a room picture drawn at its zoom;
 2. the bodies' contact and drop shadows on it (:class:`~jaxmotion.render.scene.ShadowMap`);
 3. the bodies, rasterised (:mod:`~jaxmotion.render.raster`) at :data:`SUPERSAMPLE` times the
-   size inside their bounding box only, depth-tested against the room, shaded per pixel
-   (smooth normals; a hemisphere ambient, a key light from over the camera's left shoulder,
-   a soft rim and a little specular), then reduced to the picture (antialiased edges);
+   size inside their bounding box only, depth-tested against the room, shaded per vertex
+   (a hemisphere ambient, a key light from over the camera's left shoulder, a soft rim and a
+   little specular) and interpolated across each triangle (Gouraud; the triangles are a few
+   pixels wide), then reduced to the picture (antialiased edges);
 4. the caption (top left, on a translucent band), the time (bottom right) and, for several
    samples, a legend.
 
@@ -87,6 +88,8 @@ class Clip:
                              f"samples, {bodies.num_frames} frames) do not match")
         self.fps = float(fps)
         self.width, self.height = (int(s) for s in size)
+        if min(self.width, self.height) < 16:
+            raise ValueError(f"size must be at least 16×16 pixels, got {tuple(size)}")
         self.text = text
         k = bodies.num_samples
         self.grid = (1, 1)
@@ -108,7 +111,6 @@ class Clip:
         self.top = float(self.joints[..., 2].max())
         self.faces = bodies.faces
         self._incidence = None
-        self.smooth = True
         self._room = None
         self._room_supersample = max(1.0, float(room_supersample))
 
@@ -128,6 +130,7 @@ class Clip:
                 ss = round(s) if s == round(s) else 1
                 self._room = self.scene.background(base, centre, reach, self.top,
                                                    supersample=ss, holes=holes)
+                self._room.keep_world = True  # every frame's shadows fall on it
             else:  # a follow camera crops frames out of a picture drawn at its zoom
                 scale = min(self.plan.zoom, math.sqrt(MAX_ROOM_PIXELS / (base.width * base.height)))
                 self._room = self.scene.background(base.scaled(max(1.0, scale)), centre, reach,
@@ -210,16 +213,13 @@ class Clip:
             face = ids[sel] - i * nf
             normals = vertex_normals(verts[k], self.faces, self._incidence)
             vc = _shade_body(normals, body_colour(k), self.light, cam.rot[2])
-            if self.smooth:  # Gouraud: vertex colours interpolated across each triangle
-                xy, z = proj[i]
-                bary = raster.triangle_barycentrics(xy - shift, z, self.faces, face, sel % rw,
-                                                    sel // rw).astype(np.float32)
-                tri = self.faces[face]
-                colour[sel] = (bary[:, :1] * vc[tri[:, 0]] + bary[:, 1:2] * vc[tri[:, 1]]
-                               + bary[:, 2:] * vc[tri[:, 2]])
-            else:  # each triangle in the mean of its corners' colours (a pixel or two wide)
-                fc = (vc[self.faces[:, 0]] + vc[self.faces[:, 1]] + vc[self.faces[:, 2]]) / 3
-                colour[sel] = fc[face]
+            # Gouraud: vertex colours interpolated across each triangle
+            xy, z = proj[i]
+            bary = raster.triangle_barycentrics(xy - shift, z, self.faces, face, sel % rw,
+                                                sel // rw).astype(np.float32)
+            tri = self.faces[face]
+            colour[sel] = (bary[:, :1] * vc[tri[:, 0]] + bary[:, 1:2] * vc[tri[:, 1]]
+                           + bary[:, 2:] * vc[tri[:, 2]])
         rgb[y0:y1, x0:x1] = _reduce(colour.reshape(rh, rw, 3), s)
 
     def _annotate(self, img: np.ndarray, f: int, tile_samples) -> np.ndarray:
@@ -317,6 +317,9 @@ def render_video(path, clip: Clip, *, video_fps: float | None = None,
     suffix = path.suffix.lower()
     if suffix not in (".mp4", ".gif"):
         raise ValueError(f"render_video writes .mp4 or .gif, got {path.name!r}")
+    if suffix == ".mp4" and (clip.width % 2 or clip.height % 2):
+        raise ValueError(f"an .mp4 needs an even width and height, got {clip.width}×"
+                         f"{clip.height}")
     if suffix == ".gif":
         video_fps = min(video_fps or clip.fps, GIF_MAX_FPS)
     frames, out_fps = _frame_indices(clip.bodies.num_frames, clip.fps, video_fps, max_frames)

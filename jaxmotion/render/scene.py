@@ -61,10 +61,21 @@ class BackgroundPicture:
     """The room drawn from one camera ``cam``: ``rgb [H, W, 3]`` float32 in [0, 1] and
     ``depth [H, W]`` float32 (inf where nothing is drawn)."""
 
-    __slots__ = ("cam", "depth", "rgb")
+    __slots__ = ("_world", "cam", "depth", "keep_world", "rgb")
 
-    def __init__(self, cam: Camera, rgb, depth):
+    def __init__(self, cam: Camera, rgb, depth, keep_world: bool = False):
         self.cam, self.rgb, self.depth = cam, rgb, depth
+        self.keep_world = keep_world  # a picture used for many frames: world points kept
+        self._world = None
+
+    def _points(self, r, c, d) -> np.ndarray:
+        """World points ``[M, 3]`` float32 at rows ``r``, columns ``c`` and depths ``d``."""
+        cam = self.cam
+        u = ((c + 0.5 - cam.cx) / cam.focal).astype(np.float32)
+        v = ((r + 0.5 - cam.cy) / cam.focal).astype(np.float32)
+        rot = cam.rot.astype(np.float32)
+        return cam.eye.astype(np.float32) + d[:, None] * (u[:, None] * rot[0]
+                                                          + v[:, None] * rot[1] + rot[2])
 
     def receivers(self, lo, hi, top: float) -> tuple[np.ndarray, np.ndarray]:
         """The pixels that show a world point inside the box ``lo ≤ (x, y) < hi``, z ≤ ``top``:
@@ -82,14 +93,19 @@ class BackgroundPicture:
             x1, y1 = cam.width, cam.height
         if x1 <= x0 or y1 <= y0:
             return np.zeros(0, np.int64), np.zeros((0, 3), np.float32)
-        d = self.depth[y0:y1, x0:x1]
-        r, c = np.nonzero(np.isfinite(d))
-        dd = d[r, c]
-        u = ((c + x0 + 0.5 - cam.cx) / cam.focal).astype(np.float32)
-        v = ((r + y0 + 0.5 - cam.cy) / cam.focal).astype(np.float32)
-        rot = cam.rot.astype(np.float32)
-        p = cam.eye.astype(np.float32) + dd[:, None] * (u[:, None] * rot[0] + v[:, None] * rot[1]
-                                                       + rot[2])
+        if self.keep_world:
+            if self._world is None:
+                rr, cc = np.nonzero(np.isfinite(self.depth))
+                world = np.full((*self.depth.shape, 3), np.nan, np.float32)
+                world[rr, cc] = self._points(rr, cc, self.depth[rr, cc])
+                self._world = world
+            w = self._world[y0:y1, x0:x1]
+            r, c = np.nonzero(np.isfinite(w[..., 0]))
+            p = w[r, c]
+        else:
+            d = self.depth[y0:y1, x0:x1]
+            r, c = np.nonzero(np.isfinite(d))
+            p = self._points(r + y0, c + x0, d[r, c])
         inside = np.flatnonzero((p[:, 0] >= lo[0]) & (p[:, 0] < hi[0]) & (p[:, 1] >= lo[1])
                                 & (p[:, 1] < hi[1]) & (p[:, 2] <= top))
         return (r[inside] + y0) * cam.width + c[inside] + x0, p[inside]

@@ -18,7 +18,7 @@ motion, ``docs/images/make_demo.py`` draws the README picture.
 Rooms are point clouds here (:class:`~jaxmotion.scene.Scene` keeps no triangles; a mesh is
 sampled on load), so the room is drawn as splats even when it came from a mesh.
 
-Why a software rasterizer (measured on this 2-core machine, the other core busy, 2026-11):
+Why a software rasterizer (measured on this 2-core machine, the other core busy):
 
 ============================  =========  =====================================================
 candidate                     installed  what it took / what it gave
@@ -46,12 +46,15 @@ software rasterizer in NumPy needs nothing new and is fast enough because the wo
 one body of 48k triangles (most a few pixels wide), a room drawn once per clip.
 
 Speed (``python benchmarks/render.py``: the demo room, 60,000 points, a 120-frame sitting-down
-motion, MP4; this machine, its other core busy with other work, so times vary by ~30 %):
-640×480 about 19 frames/s drawn, 15 frames/s end to end including the room (~0.5 s) and the
-H.264 encoding; 1280×720 about 9 and 7 frames/s. The joints-only drawing it replaces
-(:func:`jaxmotion.export.render_motion_video` without a body) ran at about 90 frames/s in the
-same run. What a frame costs at 640×480 (~50 ms): rasterising the body at 2× (~16 ms), its
-shading (~10 ms), the shadows (~5-12 ms), skinning and normals (~6 ms).
+motion, MP4; this 2-core machine with its other core busy with other work, load average ~2.3):
+640×480 13.2 frames/s drawn, 11.8 end to end (the room drawn once, ~0.5 s, and the H.264
+encoding, which ffmpeg does in its own process, included); 1280×720 7.3 and 6.7 frames/s. The
+joints-only drawing (:func:`jaxmotion.export.render_motion_video` without a body) ran at 81
+frames/s in the same run. With more work on the machine (load average ~6) 640×480
+fell to 9.2 drawn / 7.3 end to end. A frame at 640×480 costs, of CPU: rasterising the body at
+2× (~15-25 ms), its shading and barycentrics (~15 ms), the shadows (~5-10 ms), skinning and
+normals (~6 ms). ``jaxmotion generate`` draws 60 frames (15 per second of motion): its
+``write`` stage took 5.9 s for the demo on this machine, ~0.4 s of it the other files.
 """
 
 from jaxmotion.render.body import Bodies

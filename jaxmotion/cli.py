@@ -261,6 +261,41 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _size_arg(text: str) -> tuple[int, int]:
+    import re
+
+    m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text)
+    if not m or min(int(m[1]), int(m[2])) < 16 or max(int(m[1]), int(m[2])) > 8192:
+        raise ValueError(f"--size {text!r}: give WIDTHxHEIGHT in pixels, e.g. 640x480 or "
+                         "1280x720 (16 to 8192 each)")
+    return int(m[1]), int(m[2])
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    import time
+    from pathlib import Path
+
+    size = _size_arg(args.size)
+    out = Path(args.out)
+    if out.suffix.lower() == ".mp4" and (size[0] % 2 or size[1] % 2):
+        raise ValueError(f"--size {args.size}: an .mp4 needs even width and height")
+    if args.fps is not None and not args.fps > 0:
+        raise ValueError(f"--fps {args.fps}: give a positive frame rate")
+    if not Path(args.motion).is_file():
+        raise FileNotFoundError(f"{args.motion}: no such file; give a motion.npz written by "
+                                "'jaxmotion generate' or a dataset sample .npz")
+    from jaxmotion._jax_setup import enable_compilation_cache
+    from jaxmotion.render.results import render_saved
+
+    enable_compilation_cache()  # the mannequin's shape basis at the motion's betas is kept there
+    t0 = time.perf_counter()
+    path = render_saved(args.motion, out, scene=args.scene, num_points=args.points, size=size,
+                        samples=args.samples, camera=args.camera, azimuth=args.azimuth,
+                        elevation=args.elevation, video_fps=args.fps, frame=args.frame)
+    print(f"wrote {path} in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    return 0
+
+
 def _cmd_eval(args: argparse.Namespace) -> int:
     from jaxmotion._jax_setup import enable_compilation_cache
     from jaxmotion.eval.runner import evaluate, format_markdown, parse_model, write_report
@@ -419,7 +454,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Load a room (any mesh or point cloud, a labelled ScanNet-style .ply, a ScanNet "
         "scan folder, or 'demo'), find the region the sentence is about (or use --object), sample ADM -> AMDM "
         "with the shipped checkpoints, fit SMPL-X bodies, and write motion.npz, motion.bvh, "
-        "motion.glb, motion.gif (or .mp4) and viewer.html to --out.",
+        "motion.glb, motion.mp4 (the bodies rendered in the room; or .gif) and viewer.html to "
+        "--out.",
     )
     p.add_argument("--scene", default="demo",
                    help="scene file, ScanNet scan folder, or 'demo' (default)")
@@ -486,7 +522,8 @@ def build_parser() -> argparse.ArgumentParser:
                    ".safetensors files, action-specific ones (action=sit ...) and / or an "
                    "action-agnostic one; the one for the instruction's action is used. No "
                    "cVAE weights ship with jaxmotion")
-    p.add_argument("--video", choices=("gif", "mp4", "none"), default="gif")
+    p.add_argument("--video", choices=("mp4", "gif", "none"), default="mp4",
+                   help="the rendered video: mp4 (default, H.264), gif, or none")
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=_cmd_generate)
 
@@ -535,6 +572,36 @@ def build_parser() -> argparse.ArgumentParser:
                    "case's crop frame, with the crop's rotation and shift), to look at them")
     p.add_argument("--out", default="results", help="output folder (default: results)")
     p.set_defaults(func=_cmd_eval)
+
+    p = sub.add_parser(
+        "render",
+        help="render a saved motion (generate's motion.npz or a dataset sample) in its room",
+        description="Draw the skinned mannequin(s) of MOTION (a motion.npz written by "
+        "'jaxmotion generate', or a dataset sample .npz) in the room, shaded and lit, to an "
+        ".mp4 / .gif clip or a .png still (NumPy software renderer, no GPU or display).",
+    )
+    p.add_argument("motion", help="motion.npz from 'jaxmotion generate', or a dataset sample .npz")
+    p.add_argument("--scene", default=None,
+                   help="the room: a mesh, point cloud, .npz scene, ScanNet scan folder or "
+                   "'demo' (default: 'demo' for a motion made there; a dataset sample's "
+                   "scenes/<scene_id>.npz)")
+    p.add_argument("--out", required=True, help="output .mp4, .gif or .png")
+    p.add_argument("--size", default="640x480", help="WIDTHxHEIGHT pixels (default 640x480; "
+                   "even numbers for .mp4)")
+    p.add_argument("--samples", choices=("overlay", "grid"), default="overlay",
+                   help="several samples in one room (overlay, default) or side by side (grid)")
+    p.add_argument("--camera", choices=("auto", "fixed", "follow"), default="auto",
+                   help="fixed on the whole motion, following it, or auto (default: follow a "
+                   "motion too long to show whole)")
+    p.add_argument("--azimuth", type=float, default=None, metavar="DEG",
+                   help="view direction about the vertical (default: chosen to see the front)")
+    p.add_argument("--elevation", type=float, default=None, metavar="DEG",
+                   help="view height above the horizontal (default 24)")
+    p.add_argument("--fps", type=float, default=None,
+                   help="video frame rate (default: the motion's, every frame)")
+    p.add_argument("--frame", type=int, default=None, help="the frame of a .png (default: last)")
+    p.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
+    p.set_defaults(func=_cmd_render)
 
     p = sub.add_parser(
         "demo",

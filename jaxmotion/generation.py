@@ -6,7 +6,7 @@
     res = jaxmotion.generate("demo", "sit on the chair next to the table", samples=4, seed=0)
     res.joints        # [K, T, 22, 3] world frame (the scene's), metres, z-up
     res.smplx         # SMPL-X parameters fitted to the joints (jaxopt LBFGS)
-    res.save("out")   # motion.npz, motion.bvh, motion.glb, motion.gif, viewer.html
+    res.save("out")   # motion.npz, motion.bvh, motion.glb, motion.mp4, viewer.html
 
 This module only orchestrates; each stage lives in its own module:
 

@@ -13,9 +13,9 @@ import numpy as np
 
 __all__ = ["OUTPUT_FILES", "Generation"]
 
-#: The files :meth:`Generation.save` writes (``motion.mp4`` instead of the GIF with
-#: ``video="mp4"``).
-OUTPUT_FILES = ("motion.npz", "motion.bvh", "motion_smplx.npz", "motion.glb", "motion.gif",
+#: The files :meth:`Generation.save` writes (``motion.gif`` instead of the MP4 with
+#: ``video="gif"``).
+OUTPUT_FILES = ("motion.npz", "motion.bvh", "motion_smplx.npz", "motion.glb", "motion.mp4",
                 "viewer.html")
 
 
@@ -104,12 +104,13 @@ class Generation:
         return (f"Generation({self.text!r}, samples={k}, frames={t}, fps={self.fps:g}, "
                 f"scene={self.scene.name!r})")
 
-    def save(self, out, *, video: str | None = "gif", bvh_sample: int = 0) -> dict[str, Path]:
+    def save(self, out, *, video: str | None = "mp4", bvh_sample: int = 0) -> dict[str, Path]:
         """Write the outputs into folder ``out``; returns ``{name: path}``. See
         :func:`jaxmotion.export.write_generation`: ``motion.npz`` (every field),
         ``motion.bvh`` and ``motion_smplx.npz`` (AMASS-style SMPL-X; sample ``bvh_sample``),
-        ``motion.glb``, ``motion.gif`` /
-        ``motion.mp4`` (``video="gif"|"mp4"``, None to skip) and ``viewer.html``; an error or
+        ``motion.glb``, ``motion.mp4`` /
+        ``motion.gif`` (``video="mp4"|"gif"``, None to skip: the rendered bodies in the room)
+        and ``viewer.html``; an error or
         an interrupt leaves no half-written file and no new empty folder."""
         from jaxmotion.export.folder import write_generation
 

@@ -172,7 +172,7 @@ def test_save_writes_every_output_that_readers_open(result, tmp_path):
 
     files = result.save(tmp_path / "out")
     assert sorted(files) == sorted(["motion.npz", "motion.bvh", "motion_smplx.npz", "motion.glb",
-                                    "motion.gif", "viewer.html"])
+                                    "motion.mp4", "viewer.html"])
     d = np.load(files["motion.npz"])
     assert d["joints"].shape == (2, 120, 22, 3) and float(d["fps"]) == 30.0
     assert str(d["text"]) == result.text and d["body_pose"].shape == (2, 120, 21, 3)
@@ -180,7 +180,12 @@ def test_save_writes_every_output_that_readers_open(result, tmp_path):
     bvh = read_bvh(files["motion.bvh"])
     assert len(bvh.names) == 22 and bvh.frames.shape[0] == 120
     assert len(trimesh.load(files["motion.glb"]).geometry) >= 1
-    assert iio.imread(files["motion.gif"], index=None).shape[0] > 1
+    video = iio.imread(files["motion.mp4"], plugin="FFMPEG").astype(int)
+    assert video.shape[1:] == (480, 640, 3) and len(video) == 60  # 120 frames at 15 fps
+    # the rendered mannequins, sample 0 blue (the tiny model's bodies are small and tangled),
+    # moving between frames
+    blue = video[30, ..., 2] > 1.3 * video[30, ..., 0] + 5
+    assert blue.mean() > 1e-3 and (np.abs(video[30] - video[0]).sum(-1) > 60).mean() > 1e-3
     html = files["viewer.html"].read_text()
     assert "https://" not in html and "http://" not in html
     assert not [p for p in (tmp_path / "out").iterdir() if p.name.startswith(".")]

@@ -51,7 +51,7 @@ def test_cli_generate_and_its_errors(ckpt, tmp_path, capsys):
     line = json.loads(stdout[0])
     assert line["samples"] == 1 and line["frames"] == 120
     assert line["action"] == "sit" and "action: sit (from the words 'sit')" in captured.err
-    assert (out / "motion.bvh").is_file() and not (out / "motion.gif").exists()
+    assert (out / "motion.bvh").is_file() and not (out / "motion.mp4").exists()
     with np.load(out / "motion.npz") as f:
         from jaxmotion.options import DEFAULT_GUIDANCE
 

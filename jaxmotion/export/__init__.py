@@ -6,8 +6,9 @@
   ``.npz`` (``trans``, ``poses`` [T,165], ``betas``, ...; the SMPL-X Blender add-on).
 - :func:`write_glb`: binary glTF 2.0 with the skinned, animated body of each
   sample and the scene (mesh or point cloud), y-up (Blender, three.js, engines).
-- :func:`render_motion_video`: an offscreen GIF or MP4 of the motion in its scene;
-  :func:`render_frame`: one still PNG of it (the skeleton at several frames).
+- :func:`render_motion_video`: an offscreen GIF or MP4 of the motion in its scene (shaded
+  bodies through :mod:`jaxmotion.render` when posed meshes are given, else skeletons);
+  :func:`render_frame`: one still PNG of the skeleton at several frames.
 - :func:`write_viewer_html`: one self-contained HTML page (WebGL2, no network)
   that plays the motion in the scene, with the affordance map as a heat layer.
 

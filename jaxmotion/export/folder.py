@@ -2,7 +2,7 @@
 
 :func:`write_generation` writes ``motion.npz`` (every field of a
 :class:`~jaxmotion.result.Generation`), ``motion.bvh``, ``motion_smplx.npz`` (AMASS-style
-SMPL-X parameters), ``motion.glb``, the video and
+SMPL-X parameters), ``motion.glb``, the video (``motion.mp4``, the rendered bodies) and
 ``viewer.html`` (and ``grounding_llm.json``, the language model's prompts and answers, with
 ``--grounding llm``); :func:`check_output_folder` tells before any work whether a folder can take
 them; :func:`summary` is the JSON line the command line prints.
@@ -22,14 +22,15 @@ from jaxmotion.errors import GenerateError
 __all__ = ["check_output_folder", "scene_heat", "summary", "write_generation"]
 
 
-def write_generation(res, out, *, video: str | None = "gif", bvh_sample: int = 0) -> dict[str, Path]:
+def write_generation(res, out, *, video: str | None = "mp4", bvh_sample: int = 0) -> dict[str, Path]:
     """Write the outputs into folder ``out`` (created); returns ``{name: path}``.
 
     ``motion.npz`` (every field), ``motion.bvh`` and ``motion_smplx.npz`` (sample
     ``bvh_sample``; the second an AMASS-style SMPL-X file, :func:`jaxmotion.export.
     write_amass_npz`), ``motion.glb``
-    (skinned mannequins with the room), ``motion.gif`` / ``motion.mp4`` (``video="gif"|"mp4"``,
-    None to skip) and ``viewer.html``. Files are built in a temporary folder and moved in
+    (skinned mannequins with the room), ``motion.mp4`` / ``motion.gif`` (``video="mp4"|"gif"``,
+    None to skip: the shaded mannequins in the lit room, 640×480 at 15 frames per second,
+    :func:`jaxmotion.render.results.render_generation`) and ``viewer.html``. Files are built in a temporary folder and moved in
     at the end, so an error leaves no half-written output.
     """
     if video not in (None, "gif", "mp4"):
@@ -103,9 +104,10 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
                      body_pose=p["body_pose"], transl=p["transl"], betas=p["betas"],
                      fps=res.fps, scene_xyz=xyz, scene_rgb=rgb)
     heat = scene_heat(res, xyz)
-    if video:
-        export.render_motion_video(tmp / f"motion.{video}", xyz, rgb, res.joints,
-                                   res.fps, affordance=None)
+    if video:  # the fitted mannequins in the room (jaxmotion.render)
+        from jaxmotion.render.results import render_generation
+
+        render_generation(res, tmp / f"motion.{video}")
     cats = {int(o["id"]): o["category"] for o in res.scene.objects}
     steps = [{**g, "label": g["action"].replace("_", " ") + (
         f" · {cats.get(int(g['object']), 'object')} {g['object']}" if int(g["object"]) >= 0

@@ -1,8 +1,13 @@
 """Offscreen pictures of a motion in its scene: animated GIF or MP4, and a still PNG.
 
+Given posed body meshes (``vertices`` and ``faces``), :func:`render_motion_video` hands the
+clip to :mod:`jaxmotion.render`: shaded bodies in the lit room, a camera that frames or
+follows the motion (``jaxmotion generate`` writes its ``motion.mp4`` that way). The rest of
+this module draws the lighter picture of joints alone, described below.
+
 Each video frame shows the scene points near the motion in their colours (or
-the affordance heat layer), the body (subsampled vertices, shaded when faces
-are given) and the skeleton of every sample in its own colour (``PALETTE``,
+the affordance heat layer), the body (subsampled vertices, when given without faces)
+and the skeleton of every sample in its own colour (``PALETTE``,
 matplotlib's "tab10"), drawn on top, with the text and the time. The camera is
 fixed for the whole clip: it looks at the centre of the joints' bounding box
 over all frames and samples, 30° above the horizontal (azimuth −60°), and
@@ -50,14 +55,12 @@ from jaxmotion.export._common import (
     heat_colours,
     random_subset,
     scene_points,
-    vertex_normals,
 )
 from jaxmotion.geometry.skeleton import NUM_JOINTS, PARENTS
 
 __all__ = ["render_frame", "render_motion_video"]
 
 _MARGIN = 1.0  # metres of scene drawn around the framed cube (xy)
-_LIGHT = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
 _ELEV, _AZIM = 30.0, -60.0  # camera, degrees
 SUPERSAMPLE = 2  # pictures are drawn at SUPERSAMPLE times their size, then reduced (antialiasing)
 # Sizes in output pixels, those of the earlier matplotlib drawing at 100 dpi:
@@ -65,7 +68,7 @@ _DOT = 1.5  # scene dot side (a marker of s=1: 1 pt ≈ 1.4 px)
 _BODY_DOT = 2.0  # body dot side (s=2)
 _BONE = 3.0  # bone width (2.2 pt)
 _CAPTION_PX, _CLOCK_PX = 12.5, 11.0  # font sizes (9 pt and 8 pt)
-_GIF_MAX_FPS = 50.0  # browsers slow down GIF frames shorter than 20 ms
+GIF_MAX_FPS = 50.0  # browsers slow down GIF frames shorter than 20 ms
 _EMPTY = (math.inf, math.inf, -math.inf, -math.inf)  # an empty box (x0, y0, x1, y1)
 
 
@@ -82,26 +85,44 @@ def render_motion_video(
     text: str = "",
     size: tuple[int, int] = (480, 360),
     max_points: int = 60_000,
-    max_frames: int = 40,
+    max_frames: int | None = 40,
     max_body_points: int = 2_000,
     seed: int = 0,
+    scene_normal=None,
+    highlight=None,
+    instance=None,
+    samples: str = "overlay",
+    camera: str = "auto",
+    azimuth: float | None = None,
+    video_fps: float | None = None,
 ) -> Path:
     """Render the motion in its scene to ``.gif`` or ``.mp4`` (chosen by the suffix), atomically.
+
+    With ``vertices`` and ``faces`` the bodies are drawn as shaded meshes in the lit room
+    (:mod:`jaxmotion.render`: a camera that frames or follows the motion, shadows, the
+    target highlighted); with joints alone, as skeletons over the room's points (this
+    module's drawing).
 
     Args:
       path: output file, ``.gif`` or ``.mp4`` (MP4 needs ``imageio-ffmpeg``).
       scene_xyz: ``[N, 3]`` scene points, z-up, metres; scene_rgb: ``[N, 3]`` in [0, 1] or None.
       joints: ``[T, 22, 3]`` or ``[K, T, 22, 3]`` (K samples), same frame as the scene.
       fps: frames per second of ``joints``.
-      vertices: ``[(K,) T, V, 3]`` posed body vertices (e.g. ``body_forward(...).vertices``),
-        drawn as at most ``max_body_points`` points per body; faces: ``[F, 3]`` their
-        triangles, used to shade those points.
+      vertices: ``[(K,) T, V, 3]`` posed body vertices (e.g. ``body_forward(...).vertices``);
+        faces: ``[F, 3]`` their triangles. Without faces, at most ``max_body_points``
+        vertices per body are drawn as dots.
       affordance: ``[N]`` or ``[N, C]`` affordance map in [0, 1]: the scene is drawn as a
         heat layer of its maximum over the channels.
       text: caption drawn at the top.
       size: ``(width, height)`` pixels (even numbers for MP4).
-      max_points, max_frames: speed limits, see the module docstring.
+      max_points, max_frames: speed limits, see the module docstring (``max_frames`` None:
+        no limit).
       seed: for the random point subsets.
+      scene_normal, highlight, instance, samples, camera, azimuth, video_fps: for shaded
+        bodies only: the room's normals ``[N, 3]``, the target's points ``[N]`` bool, the
+        points' object ids ``[N]``, ``"overlay"`` or ``"grid"``, ``"auto"`` / ``"fixed"`` /
+        ``"follow"``, the view's azimuth in degrees (None: chosen), the clip's frame rate
+        (None: the motion's); see :class:`jaxmotion.render.Clip`.
     Returns:
       the path written.
     """
@@ -112,26 +133,32 @@ def render_motion_video(
     if suffix == ".mp4" and importlib.util.find_spec("imageio_ffmpeg") is None:
         raise ValueError("writing .mp4 needs imageio-ffmpeg: pip install 'imageio-ffmpeg>=0.5'")
     width, height = _check_size(size, even=suffix == ".mp4")
-    if max_frames < 1 or max_points < 0 or max_body_points < 1:
+    if (max_frames is not None and max_frames < 1) or max_points < 0 or max_body_points < 1:
         raise ValueError("max_frames and max_body_points must be ≥ 1, max_points ≥ 0")
     fps = check_fps(fps)
     j, xyz, rgb = _motion_and_scene(scene_xyz, scene_rgb, joints, affordance)
     k, t = j.shape[:2]
-    body = body_faces = keep = None
-    if vertices is not None:
+    if vertices is not None and faces is not None:
+        from jaxmotion.render import Bodies, Clip, render_video
+
+        bodies = Bodies.from_vertices(vertices, faces)
+        sel = random_subset(len(xyz), max_points, seed)
+        pick = lambda a: None if a is None else np.asarray(a)[sel]
+        clip = Clip(bodies, j, fps, xyz[sel], rgb[sel], scene_normal=pick(scene_normal),
+                    highlight=pick(highlight), instance=pick(instance), text=text,
+                    size=(width, height), samples=samples, camera=camera, azimuth=azimuth)
+        return render_video(path, clip, video_fps=video_fps, max_frames=max_frames)
+    if max_frames is None:
+        max_frames = t
+    body = keep = None
+    if vertices is not None:  # without faces: dots
         body = np.asarray(vertices, np.float64)
         body = check_array("vertices", body[None] if body.ndim == 3 else body, (k, t, None, 3))
-        drawn = np.arange(body.shape[2])
-        if faces is not None:
-            body_faces = check_array("faces", faces, (None, 3), np.int64)
-            if body_faces.size and (body_faces.min() < 0 or body_faces.max() >= body.shape[2]):
-                raise ValueError(f"faces index vertices outside [0, {body.shape[2]})")
-            drawn = np.unique(body_faces)
-        keep = drawn[random_subset(len(drawn), max_body_points, seed)]
+        keep = random_subset(body.shape[2], max_body_points, seed)
 
     stride = math.ceil(t / max_frames)
     if suffix == ".gif":
-        stride = max(stride, math.ceil(fps / _GIF_MAX_FPS - 1e-9))
+        stride = max(stride, math.ceil(fps / GIF_MAX_FPS - 1e-9))
     frames = np.arange(0, t, stride)
     out_fps = fps / stride
 
@@ -139,7 +166,7 @@ def render_motion_video(
 
     cam = Camera(j, width, height)
     background = cam.background(xyz, rgb, max_points, seed, text)
-    clock_font = _font(_CLOCK_PX * SUPERSAMPLE)
+    clock_font = caption_font(_CLOCK_PX * SUPERSAMPLE)
     images, boxes = [], []  # frames, and the box (x0, y0, x1, y1) where each differs from
     for f in frames:  # the still scene (output pixels)
         canvas = background.copy()
@@ -149,11 +176,7 @@ def render_motion_video(
             for s in range(k):
                 pts.append(body[s, f, keep])
                 base = 0.55 + 0.45 * PALETTE[s % len(PALETTE)]
-                if body_faces is not None:
-                    n = vertex_normals(body[s, f], body_faces)[keep]
-                    colours.append(base * (0.35 + 0.65 * np.abs(n @ _LIGHT))[:, None])
-                else:
-                    colours.append(np.broadcast_to(base, (len(keep), 3)))
+                colours.append(np.broadcast_to(base, (len(keep), 3)))
             box.append(cam.dots(canvas, np.concatenate(pts), np.concatenate(colours), _BODY_DOT))
         im = Image.fromarray(canvas)
         draw = ImageDraw.Draw(im)
@@ -177,7 +200,7 @@ def render_motion_video(
         exact = [(255, 255, 255), (0, 0, 0)]
         exact += [_rgb8(PALETTE[s % len(PALETTE)]) for s in range(min(k, len(PALETTE)))]
         still = np.asarray(Image.fromarray(background).reduce(SUPERSAMPLE))
-        data = _gif_bytes(images, boxes, still, out_fps, exact)
+        data = gif_bytes(images, boxes, still, out_fps, exact)
     else:
         import imageio.v3 as iio
 
@@ -297,7 +320,7 @@ def _rgb8(colour) -> tuple[int, int, int]:
 
 
 @functools.lru_cache(maxsize=8)
-def _font(px: float):
+def caption_font(px: float):
     from PIL import ImageFont
 
     try:
@@ -376,8 +399,8 @@ class Camera:
             from PIL import Image, ImageDraw
 
             im = Image.fromarray(img)
-            font = _font(_CAPTION_PX * SUPERSAMPLE)
-            lines = _wrap(text, font, 0.96 * self.width)
+            font = caption_font(_CAPTION_PX * SUPERSAMPLE)
+            lines = wrap_text(text, font, 0.96 * self.width)
             ImageDraw.Draw(im).multiline_text(
                 (0.02 * self.width, 0.02 * self.height), "\n".join(lines), fill=(0, 0, 0), font=font
             )
@@ -425,7 +448,7 @@ class Camera:
         return (*(xy.min(0) - w), *(xy.max(0) + w + 1))
 
 
-def _wrap(text: str, font, width: float) -> list[str]:
+def wrap_text(text: str, font, width: float) -> list[str]:
     """``text`` broken at spaces into lines at most ``width`` pixels long (long words kept)."""
     lines = []
     for para in text.splitlines() or [""]:
@@ -441,7 +464,7 @@ def _wrap(text: str, font, width: float) -> list[str]:
     return lines
 
 
-def _gif_bytes(images: list[np.ndarray], boxes, still: np.ndarray, fps: float, exact) -> bytes:
+def gif_bytes(images: list[np.ndarray], boxes, still: np.ndarray, fps: float, exact) -> bytes:
     """Animated GIF of RGB frames: one shared palette, frame times summing to the clip's.
 
     The palette has the colours ``exact`` (white, black, the skeletons') and a median cut

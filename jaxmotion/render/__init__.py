@@ -1,0 +1,65 @@
+"""Offscreen rendering of skinned bodies in a room: NumPy and Pillow only, no GPU, no display.
+
+``jaxmotion generate`` writes ``motion.mp4`` with it, ``jaxmotion render`` re-renders a saved
+motion, ``docs/images/make_demo.py`` draws the README picture.
+
+- :mod:`~jaxmotion.render.raster`: a z-buffer software rasterizer (triangles, surfels),
+  fragments resolved by one ``np.minimum.at`` over packed ``depth | id`` keys;
+- :mod:`~jaxmotion.render.camera`: pinhole cameras that frame the motion, fixed or following;
+- :mod:`~jaxmotion.render.scene`: the room as lit surfels (its points, with their normals or
+  estimated ones), a floor plane, eye-dome outlines, the cutaway (near walls and furniture
+  that would hide the body are left out), contact and drop shadows;
+- :mod:`~jaxmotion.render.body`: the mannequin skinned per frame on the host;
+- :mod:`~jaxmotion.render.frames`: :class:`Clip` draws a frame (room, shadows, bodies at 2×
+  and reduced, caption, clock); :func:`render_video` (MP4 / GIF), :func:`render_still` (PNG);
+- :mod:`~jaxmotion.render.results`: a ``Generation``, a saved ``motion.npz`` or a dataset
+  sample in its room.
+
+Rooms are point clouds here (:class:`~jaxmotion.scene.Scene` keeps no triangles; a mesh is
+sampled on load), so the room is drawn as splats even when it came from a mesh.
+
+Why a software rasterizer (measured on this 2-core machine, the other core busy):
+
+============================  =========  =====================================================
+candidate                     installed  what it took / what it gave
+============================  =========  =====================================================
+moderngl 5.13 + glcontext     1.4 MB     a context opens only through the system's EGL (Mesa's
+(EGL standalone)                         llvmpipe is installed here: 57 frames/s for the 48k-
+                                         triangle body alone at 1280×960); pip brings no EGL
+                                         or OSMesa library, so a pip-only machine has none
+pyrender (OSMesa / EGL)       —          not measured: the same system OpenGL libraries
+vtk 9.7 (offscreen)           566 MB     139 MB wheel; opened the system's EGL here, 4 frames/s
+                                         for the body at 1280×960 (update, render, read back)
+mitsuba 3.9 + drjit           206 MB     ``llvm_ad_rgb`` failed to compile its kernels with
+                                         the system's LLVM 15; ``scalar_rgb``: 4.7 frames/s for
+                                         the body alone, 640×480, 4 samples/pixel (no room)
+bpy (Blender as a module)     —          not measured: wheels of ~300 MB for one Python
+                                         version, and it needs X11/GL system libraries
+this package (NumPy)          0          runs wherever NumPy and Pillow do; 640×480 with the
+                                         room, shadows and 2× antialiasing (numbers below)
+============================  =========  =====================================================
+
+A GPU-less, display-less machine installed by ``pip`` alone has no OpenGL implementation,
+so every OpenGL route needs system packages (``libegl1``, ``libgl1-mesa-dri`` or
+``libosmesa6``); the ray tracers are slower than the target before a room is added. A
+software rasterizer in NumPy needs nothing new and is fast enough because the work is small:
+one body of 48k triangles (most a few pixels wide), a room drawn once per clip.
+
+Speed (``python benchmarks/render.py``: the demo room, 60,000 points, a 120-frame sitting-down
+motion, MP4; this 2-core machine with its other core busy with other work, load average ~2.3):
+640×480 13.2 frames/s drawn, 11.8 end to end (the room drawn once, ~0.5 s, and the H.264
+encoding, which ffmpeg does in its own process, included); 1280×720 7.3 and 6.7 frames/s. The
+joints-only drawing (:func:`jaxmotion.export.render_motion_video` without a body) ran at 81
+frames/s in the same run. With more work on the machine (load average ~6) 640×480
+fell to 9.2 drawn / 7.3 end to end. A frame at 640×480 costs, of CPU: rasterising the body at
+2× (~15-25 ms), its shading and barycentrics (~15 ms), the shadows (~5-10 ms), skinning and
+normals (~6 ms). ``jaxmotion generate`` draws 60 frames (15 per second of motion): its
+``write`` stage took 5.9 s for the demo on this machine, ~0.4 s of it the other files.
+"""
+
+from jaxmotion.render.body import Bodies
+from jaxmotion.render.camera import CAMERA_MODES, Camera, CameraPlan, plan_cameras
+from jaxmotion.render.frames import SAMPLE_LAYOUTS, Clip, render_still, render_video
+
+__all__ = ["CAMERA_MODES", "SAMPLE_LAYOUTS", "Bodies", "Camera", "CameraPlan", "Clip",
+           "plan_cameras", "render_still", "render_video"]

@@ -1,0 +1,181 @@
+"""The bodies a clip shows: K posed meshes per frame, skinned on the host, frame by frame.
+
+:class:`Bodies` hands the renderer ``[K, V, 3]`` vertices for one frame at a time, either from
+arrays the caller posed (``body_forward(...).vertices``) or from SMPL-X parameters, skinned here
+in NumPy (:meth:`Bodies.from_smplx`): the same linear blend skinning as
+:func:`jaxmotion.body.lbs` (pose correctives included for a user's SMPL-X model), with the
+kinematic chain of all frames computed once and the vertices of a frame blended when it is
+drawn. No XLA program is compiled (each would cost a fresh process ~0.5 s) and a long motion
+never holds all its meshes in memory. Betas other than the model's anchor use its linear shape
+space (exact for a user's SMPL-X model; first-order for the mannequin, see
+:mod:`jaxmotion.body.model`).
+
+Vertex normals are area-weighted face normals summed per vertex (:func:`vertex_normals`, a
+sparse incidence product). Nothing here calls BLAS: on a machine shared with other work its
+threads cost more than they save (a frame took twice as long with them).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["Bodies", "vertex_normals"]
+
+
+def _rodrigues(aa: np.ndarray) -> np.ndarray:
+    """Axis-angle ``[..., 3]`` → rotation matrices ``[..., 3, 3]`` (float64)."""
+    aa = np.asarray(aa, np.float64)
+    theta = np.linalg.norm(aa, axis=-1)
+    small = theta < 1e-8
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta**2 / 6, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta**2 / 24, (1 - np.cos(safe)) / safe**2)
+    x, y, z = aa[..., 0], aa[..., 1], aa[..., 2]
+    zero = np.zeros_like(x)
+    k = np.stack([zero, -z, y, z, zero, -x, -y, x, zero], -1).reshape(*aa.shape[:-1], 3, 3)
+    return np.eye(3) + a[..., None, None] * k + b[..., None, None] * (k @ k)
+
+
+class Bodies:
+    """K posed meshes over T frames sharing ``faces [F, 3]``; :meth:`frame` gives ``[K, V, 3]``."""
+
+    def __init__(self, faces, num_samples: int, num_frames: int, frame_fn):
+        self.faces = np.asarray(faces, np.int64)
+        self.num_samples, self.num_frames = int(num_samples), int(num_frames)
+        self._frame_fn = frame_fn
+
+    def frame(self, f: int) -> np.ndarray:
+        """Vertices of every sample at frame ``f``: ``[K, V, 3]`` float32, world, metres."""
+        return self._frame_fn(int(f))
+
+    @staticmethod
+    def from_vertices(vertices, faces) -> Bodies:
+        """Posed vertices ``[(K,) T, V, 3]`` and their triangles ``faces [F, 3]``."""
+        v = np.asarray(vertices)
+        v = v[None] if v.ndim == 3 else v
+        if v.ndim != 4 or v.shape[-1] != 3:
+            raise ValueError(f"vertices must be [T, V, 3] or [K, T, V, 3], got {list(v.shape)}")
+        f = np.asarray(faces)
+        if f.ndim != 2 or f.shape[1] != 3 or (f.size and (f.min() < 0 or f.max() >= v.shape[2])):
+            raise ValueError(f"faces must be [F, 3] indices into the {v.shape[2]} vertices")
+        if not np.all(np.isfinite(v)):
+            raise ValueError("vertices has non-finite values (NaN or inf)")
+        return Bodies(f, v.shape[0], v.shape[1], lambda i: np.asarray(v[:, i], np.float32))
+
+    @staticmethod
+    def from_smplx(global_orient, body_pose, transl, betas=None, model=None) -> Bodies:
+        """SMPL-X parameters ``[(K,) T, 3]``, ``[(K,) T, 21, 3]`` (or ``[..., 63]``),
+        ``[(K,) T, 3]``, ``betas [(K,) B]`` posed on ``model``; None: the mannequin built at
+        each sample's betas (exact mesh, as in ``motion.glb``)."""
+        from jaxmotion.body.model import load_mannequin, shaped_rest_host
+
+        go = np.asarray(global_orient, np.float64)
+        one = go.ndim == 2
+        go = go[None] if one else go
+        k, t = go.shape[:2]
+        bp = np.asarray(body_pose, np.float64).reshape(k, t, 21, 3)
+        tr = np.asarray(transl, np.float64).reshape(k, t, 3)
+        if go.shape != (k, t, 3):
+            raise ValueError(f"global_orient must be [T, 3] or [K, T, 3], got {list(go.shape)}")
+        if not all(np.all(np.isfinite(x)) for x in (go, bp, tr)):
+            raise ValueError("the SMPL-X parameters have non-finite values")
+        if betas is not None:
+            betas = np.asarray(betas, np.float64)
+            betas = np.broadcast_to(betas if betas.ndim == 2 else betas[None], (k, betas.shape[-1]))
+        anchored = model is None  # each sample's own mannequin, exact at its betas
+        models = [model] * k if not anchored else [
+            load_mannequin(None if betas is None else betas[s]) for s in range(k)]
+        model = models[0]
+        parents = model.parents
+        influence, weight, blocks, perm = _influences(np.asarray(model.weights, np.float32))
+        posedirs = np.asarray(model.posedirs, np.float64)
+        fixed = np.asarray(model.fixed_pose, np.float64)
+        num_joints = len(parents)
+        rest = [shaped_rest_host(m, None if betas is None or anchored else betas[s])
+                for s, m in enumerate(models)]
+        aa = np.concatenate([go[:, :, None], bp, np.broadcast_to(
+            fixed[22:], (k, t, num_joints - 22, 3))], axis=2)
+        local = _rodrigues(aa)  # [K, T, J, 3, 3]
+        # affine [K, T, J, 3, 4] per joint: v ↦ G_j v + (p_j − G_j b_j)
+        affine = np.empty((k, t, num_joints, 3, 4))
+        for s in range(k):
+            _, j_rest = rest[s]
+            g = np.empty((t, num_joints, 3, 3))
+            p = np.empty((t, num_joints, 3))
+            g[:, 0] = local[s, :, 0]
+            p[:, 0] = j_rest[0] + tr[s]
+            for j in range(1, num_joints):
+                q = parents[j]
+                g[:, j] = g[:, q] @ local[s, :, j]
+                p[:, j] = p[:, q] + g[:, q] @ (j_rest[j] - j_rest[q])
+            affine[s, :, :, :, :3] = g
+            affine[s, :, :, :, 3] = p - np.einsum("tjab,jb->tja", g, j_rest)
+        affine = affine.reshape(k, t, num_joints, 12).astype(np.float32)
+        eye = np.eye(3)
+
+        def frame(i: int) -> np.ndarray:
+            out = np.empty((k, len(influence), 3), np.float32)
+            for s in range(k):
+                v = rest[s][0]
+                if posedirs.shape[-1]:
+                    feat = (local[s, i, 1:22] - eye).reshape(-1)[: posedirs.shape[-1]]
+                    v = v + posedirs @ feat
+                v = v.astype(np.float32)[perm]
+                a = affine[s, i]
+                m = a[influence[:, 0]]  # blended [G | t] per vertex (sorted by influences)
+                for c, start in enumerate(blocks[1:], 1):  # rows from `start` have > c
+                    if c == 1:
+                        m[start:] *= weight[start:, :1]
+                    m[start:] += weight[start:, c : c + 1] * a[influence[start:, c]]
+                m = m.reshape(-1, 3, 4)
+                out[s, perm] = (m[:, :, 0] * v[:, :1] + m[:, :, 1] * v[:, 1:2]
+                                + m[:, :, 2] * v[:, 2:] + m[:, :, 3])
+            return out
+
+        return Bodies(np.asarray(model.faces, np.int64), k, t, frame)
+
+
+def _influences(weights: np.ndarray, most: int = 8):
+    """The skinning weights as a few gathers: vertices sorted by their count of influences
+    (``perm [V]``), and for each its joints ``[V, C]`` and weights ``[V, C]``, strongest first
+    (C ≤ ``most``; renormalised when cut); ``blocks[c]`` is the first sorted row with more
+    than c influences. Most of the mannequin's vertices follow one joint (a plain gather);
+    blending needs no BLAS call, whose threads cost more than they save on a busy machine."""
+    count = np.minimum((weights > 0).sum(1), most)
+    perm = np.argsort(count, kind="stable")
+    w = weights[perm]
+    c = max(1, int(count.max()))
+    idx = np.argsort(-w, axis=1, kind="stable")[:, :c]
+    ww = np.take_along_axis(w, idx, axis=1).astype(np.float32)
+    ww /= ww.sum(1, keepdims=True)
+    blocks = np.searchsorted(count[perm], np.arange(c), side="right")
+    return idx, ww, blocks, perm
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray, incidence=None) -> np.ndarray:
+    """Unit area-weighted vertex normals ``[V, 3]`` (zero for a vertex in no face).
+
+    ``incidence``: the sparse ``[V, F]`` 0/1 matrix of :func:`face_incidence` for ``faces`` (built
+    when None; pass it when the same faces are used for many frames)."""
+    if incidence is None:
+        incidence = face_incidence(faces, len(vertices))
+    v = np.asarray(vertices, np.float32)
+    a, b, c = v[faces[:, 0]], v[faces[:, 1]], v[faces[:, 2]]
+    e1, e2 = b - a, c - a
+    fn = np.empty_like(e1)  # the cross product, written out (np.cross is slower here)
+    fn[:, 0] = e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]
+    fn[:, 1] = e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]
+    fn[:, 2] = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    acc = incidence @ fn
+    norm = np.linalg.norm(acc, axis=1, keepdims=True)
+    return acc / np.where(norm > 0, norm, 1.0)
+
+
+def face_incidence(faces: np.ndarray, num_vertices: int):
+    """Sparse ``[V, F]`` matrix with a 1 where vertex v is a corner of face f (scipy CSR)."""
+    from scipy.sparse import csr_matrix
+
+    f = np.asarray(faces, np.int64)
+    rows = f.reshape(-1)
+    cols = np.repeat(np.arange(len(f)), 3)
+    return csr_matrix((np.ones(len(rows), np.float32), (rows, cols)), shape=(num_vertices, len(f)))

@@ -1,0 +1,386 @@
+"""Pictures of K bodies moving in a room: frames, MP4 / GIF clips and still PNGs.
+
+:class:`Clip` holds what one rendering needs (bodies, joints for the camera, the room layer,
+options) and draws frame ``f`` as ``uint8 [H, W, 3]`` (:meth:`Clip.draw`):
+
+1. the room (:class:`~jaxmotion.render.scene.SceneLayer`), drawn once per clip from the base
+   camera (at ``room_supersample`` times the size and reduced, for stills); a following
+   camera crops each frame out of a room picture drawn at its zoom;
+2. the bodies' contact and drop shadows on it (:class:`~jaxmotion.render.scene.ShadowMap`);
+3. the bodies, rasterised (:mod:`~jaxmotion.render.raster`) at :data:`SUPERSAMPLE` times the
+   size inside their bounding box only, depth-tested against the room, shaded per vertex
+   (a hemisphere ambient, a key light from over the camera's left shoulder, a soft rim and a
+   little specular) and interpolated across each triangle (Gouraud; the triangles are a few
+   pixels wide), then reduced to the picture (antialiased edges);
+4. the caption (top left, on a translucent band), the time (bottom right) and, for several
+   samples, a legend.
+
+Several samples are drawn ``"overlay"`` (one room, every body in its colour,
+:data:`~jaxmotion.export._common.PALETTE`) or ``"grid"`` (a tile per sample, same camera).
+:func:`render_video` writes a clip (MP4 streamed to ffmpeg, or GIF), :func:`render_still` one
+PNG (optionally with faint "ghost" bodies at earlier frames).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from jaxmotion._atomic import atomic_open
+from jaxmotion.export._common import PALETTE
+from jaxmotion.render import raster
+from jaxmotion.render.body import Bodies, face_incidence, vertex_normals
+from jaxmotion.render.camera import ELEVATION_DEG, Camera, frame_box, plan_cameras, rotate
+from jaxmotion.render.scene import CutawayHoles, SceneLayer, ShadowMap, light_direction
+
+__all__ = ["SAMPLE_LAYOUTS", "SUPERSAMPLE", "Clip", "body_colour", "render_still",
+           "render_video"]
+
+SUPERSAMPLE = 2  # bodies are drawn at this many times the picture's size, then reduced
+SAMPLE_LAYOUTS = ("overlay", "grid")
+_BG_ID = 0xFFFF_FFFD  # the room's pixels in the body pass's z-buffer
+_SHADOW_STRIDE = 3  # every 3rd body vertex casts the shadows
+_GHOST = 0.35  # opacity of the faint bodies of a still
+MAX_ROOM_PIXELS = 4_000_000  # a follow camera's room picture is at most this large
+
+
+def body_colour(sample: int) -> np.ndarray:
+    """The body colour of sample ``sample``: its palette colour, lightened."""
+    return 0.5 * PALETTE[sample % len(PALETTE)] + 0.5 * np.array([0.93, 0.93, 0.95])
+
+
+class Clip:
+    """One rendering of ``bodies`` in a room (see the module docstring).
+
+    Args:
+      bodies: the posed meshes (:class:`~jaxmotion.render.body.Bodies`).
+      joints: ``[K, T, 22, 3]`` the same motions' joints (frame the camera).
+      fps: frames per second of the motion (the clock).
+      scene_xyz, scene_rgb, scene_normal: the room's points (see ``SceneLayer``).
+      highlight: ``[N]`` bool, the target object's points, or None; instance: ``[N]`` object
+        ids of the points (−1: none) or None (the cutaway removes whole objects).
+      text: caption; size: ``(width, height)``; samples: ``"overlay"`` or ``"grid"``.
+      camera: ``"auto"``, ``"fixed"`` or ``"follow"``; azimuth, elevation: degrees (azimuth
+        None: chosen to see the body's front past the furniture).
+      floor: draw the floor plane (z = 0).
+      room_supersample: draw the room at this many times the picture's size (a fixed camera;
+        2 for stills: smoother edges, four times the work); a follow camera draws it at its
+        zoom (up to :data:`MAX_ROOM_PIXELS`) and crops each frame out of it.
+    """
+
+    def __init__(self, bodies: Bodies, joints, fps: float, scene_xyz, scene_rgb=None, *,
+                 scene_normal=None, highlight=None, instance=None, text: str = "",
+                 size: tuple[int, int] = (640, 480), samples: str = "overlay",
+                 camera: str = "auto", azimuth: float | None = None,
+                 elevation: float = ELEVATION_DEG, floor: bool = True,
+                 room_supersample: float = 1.0):
+        if samples not in SAMPLE_LAYOUTS:
+            raise ValueError(f"samples must be 'overlay' or 'grid', got {samples!r}")
+        self.bodies = bodies
+        self.joints = np.asarray(joints, np.float64)
+        if self.joints.shape[:2] != (bodies.num_samples, bodies.num_frames):
+            raise ValueError(f"joints {list(self.joints.shape)} and the bodies ({bodies.num_samples} "
+                             f"samples, {bodies.num_frames} frames) do not match")
+        self.fps = float(fps)
+        self.width, self.height = (int(s) for s in size)
+        if min(self.width, self.height) < 16:
+            raise ValueError(f"size must be at least 16×16 pixels, got {tuple(size)}")
+        self.text = text
+        k = bodies.num_samples
+        self.grid = (1, 1)
+        if samples == "grid" and k > 1:
+            cols = max(1, round(math.sqrt(k * self.height / self.width * 16 / 9)))
+            cols = min(k, max(cols, math.ceil(k / math.ceil(math.sqrt(k)))))
+            self.grid = (cols, math.ceil(k / cols))
+        self.layout = samples if k > 1 else "overlay"
+        tw, th = self.width // self.grid[0], self.height // self.grid[1]
+        self.tile = (tw, th)
+        xyz = np.asarray(scene_xyz, np.float64).reshape(-1, 3)
+        self.plan = plan_cameras(self.joints, self.fps, tw, th, mode=camera, azimuth=azimuth,
+                                 elevation=elevation, scene_xyz=xyz)
+        self.cameras, self.mode = self.plan.cameras, self.plan.mode
+        self.light = light_direction(self.plan.base)
+        rgb = np.full_like(xyz, 0.6) if scene_rgb is None else scene_rgb
+        self.scene = SceneLayer(xyz, rgb, scene_normal, highlight, instance, light=self.light,
+                                floor=floor)
+        self.top = float(self.joints[..., 2].max())
+        self.faces = bodies.faces
+        self._incidence = None
+        self._room = None
+        self._room_supersample = max(1.0, float(room_supersample))
+
+    # ---------------------------------------------------------------- background
+
+    def room(self):
+        """The room from the base camera (drawn once; see ``SceneLayer.background``)."""
+        if self._room is None:
+            base = self.plan.base
+            centre, _ = frame_box(self.joints)
+            back = -base.rot[2, :2] / max(float(np.linalg.norm(base.rot[2, :2])), 1e-9)
+            reach = float(((self.joints[..., :2] - centre[:2]) @ back).max()) + 0.3
+            step = max(1, self.joints.shape[1] // 40)
+            holes = CutawayHoles(base, self.joints[:, ::step])
+            if self.mode == "fixed":
+                s = self._room_supersample
+                ss = round(s) if s == round(s) else 1
+                self._room = self.scene.background(base, centre, reach, self.top,
+                                                   supersample=ss, holes=holes)
+                self._room.keep_world = True  # every frame's shadows fall on it
+            else:  # a follow camera crops frames out of a picture drawn at its zoom
+                scale = min(self.plan.zoom, math.sqrt(MAX_ROOM_PIXELS / (base.width * base.height)))
+                self._room = self.scene.background(base.scaled(max(1.0, scale)), centre, reach,
+                                                   self.top, holes=holes)
+        return self._room
+
+    def _background(self, f: int):
+        room = self.room()
+        return room if self.mode == "fixed" else room.crop(self.cameras[f])
+
+    # ---------------------------------------------------------------- one frame
+
+    def draw(self, f: int, ghosts=()) -> np.ndarray:
+        """Frame ``f`` (an index into the motion's T frames): ``uint8 [H, W, 3]``; the bodies
+        of the frames ``ghosts`` are drawn faintly behind (same camera, see-through)."""
+        f = int(f)
+        bg = self._background(f)
+        cam = self.cameras[f]
+        verts = self.bodies.frame(f)
+        tw, th = self.tile
+        out = np.full((self.height, self.width, 3), 255, np.uint8)
+        groups = [list(range(self.bodies.num_samples))] if self.layout == "overlay" else \
+            [[s] for s in range(self.bodies.num_samples)]
+        for tile, members in enumerate(groups):
+            rgb = bg.rgb.copy()
+            self._shadows(rgb, bg, verts[members])
+            for g in ghosts:
+                layer = rgb.copy()
+                self._bodies(layer, bg.depth, cam, self.bodies.frame(g), members)
+                rgb += _GHOST * (layer - rgb)
+            self._bodies(rgb, bg.depth, cam, verts, members)
+            c, r = tile % self.grid[0], tile // self.grid[0]
+            out[r * th:(r + 1) * th, c * tw:(c + 1) * tw] = _to_uint8(rgb)
+        return self._annotate(out, f, [g[0] for g in groups] if self.layout == "grid" else None)
+
+    def _shadows(self, rgb: np.ndarray, bg, verts: np.ndarray) -> None:
+        shadow = ShadowMap(verts[:, ::_SHADOW_STRIDE].reshape(-1, 3), self.light)
+        pix, xyz = bg.receivers(*shadow.box, top=float(verts[..., 2].max()))
+        if len(pix):
+            factor, inside = shadow.factor(xyz)
+            rgb.reshape(-1, 3)[pix[inside]] *= factor[:, None]
+
+    def _bodies(self, rgb: np.ndarray, depth: np.ndarray, cam: Camera, verts: np.ndarray,
+                members: list[int]) -> None:
+        """Draw the bodies ``members`` of ``verts [K, V, 3]`` into ``rgb`` in place."""
+        s = SUPERSAMPLE
+        big = cam.scaled(s)
+        h, w = depth.shape
+        proj = [big.project(verts[k]) for k in members]
+        xy_all = np.concatenate([p[0][p[1] > 1e-3] for p in proj])
+        if not len(xy_all):
+            return
+        x0 = max(0, math.floor(xy_all[:, 0].min() / s) - 1)
+        y0 = max(0, math.floor(xy_all[:, 1].min() / s) - 1)
+        x1 = min(w, math.ceil(xy_all[:, 0].max() / s) + 1)
+        y1 = min(h, math.ceil(xy_all[:, 1].max() / s) + 1)
+        if x1 <= x0 or y1 <= y0:
+            return
+        rw, rh = (x1 - x0) * s, (y1 - y0) * s
+        shift = np.array([x0 * s, y0 * s], np.float64)
+        nf = len(self.faces)
+        frags = raster.Fragments.concat([
+            raster.raster_triangles(xy - shift, z, self.faces, rw, rh, id_offset=i * nf)
+            for i, (xy, z) in enumerate(proj)])
+        region_depth = np.repeat(np.repeat(depth[y0:y1, x0:x1], s, 0), s, 1).reshape(-1)
+        buf = raster.keys(region_depth, np.full(region_depth.shape, _BG_ID))
+        raster.resolve(buf, frags)
+        ids = raster.id_of_keys(buf)
+        pixels = np.flatnonzero(ids < len(members) * nf)
+        if not len(pixels):
+            return
+        colour = np.repeat(np.repeat(rgb[y0:y1, x0:x1], s, 0), s, 1).reshape(-1, 3)
+        if self._incidence is None:
+            self._incidence = face_incidence(self.faces, verts.shape[1])
+        owner = ids[pixels] // nf
+        for i, k in enumerate(members):
+            sel = pixels[owner == i]
+            if not len(sel):
+                continue
+            face = ids[sel] - i * nf
+            normals = vertex_normals(verts[k], self.faces, self._incidence)
+            vc = _shade_body(normals, body_colour(k), self.light, cam.rot[2])
+            # Gouraud: vertex colours interpolated across each triangle
+            xy, z = proj[i]
+            bary = raster.triangle_barycentrics(xy - shift, z, self.faces, face, sel % rw,
+                                                sel // rw).astype(np.float32)
+            tri = self.faces[face]
+            colour[sel] = (bary[:, :1] * vc[tri[:, 0]] + bary[:, 1:2] * vc[tri[:, 1]]
+                           + bary[:, 2:] * vc[tri[:, 2]])
+        rgb[y0:y1, x0:x1] = _reduce(colour.reshape(rh, rw, 3), s)
+
+    def _annotate(self, img: np.ndarray, f: int, tile_samples) -> np.ndarray:
+        from PIL import Image, ImageDraw
+
+        from jaxmotion.export.video import caption_font, wrap_text
+
+        im = Image.fromarray(img)
+        draw = ImageDraw.Draw(im, "RGBA")
+        scale = max(self.width, self.height) / 640
+        if self.text:
+            font = caption_font(13.0 * scale)
+            lines = wrap_text(self.text, font, 0.9 * self.width)
+            pos = (0.02 * self.width, 0.02 * self.height)
+            box = draw.multiline_textbbox(pos, "\n".join(lines), font=font)
+            pad = 4 * scale
+            draw.rectangle([box[0] - pad, box[1] - pad, box[2] + pad, box[3] + pad],
+                           fill=(255, 255, 255, 190))
+            draw.multiline_text(pos, "\n".join(lines), fill=(20, 20, 20), font=font)
+        font = caption_font(11.0 * scale)
+        clock = f"{f / self.fps:5.2f} s"
+        pos = (0.98 * self.width, 0.98 * self.height)
+        box = draw.textbbox(pos, clock, font=font, anchor="rd")
+        draw.rectangle([box[0] - 3, box[1] - 3, box[2] + 3, box[3] + 3], fill=(255, 255, 255, 190))
+        draw.text(pos, clock, fill=(20, 20, 20), font=font, anchor="rd")
+        k = self.bodies.num_samples
+        if k > 1:
+            tw, th = self.tile
+            for i in range(k):
+                colour = tuple(round(255 * c) for c in PALETTE[i % len(PALETTE)])
+                if tile_samples is None:  # overlay: a legend at the bottom left
+                    pos = (0.02 * self.width, 0.98 * self.height - (k - 1 - i) * 14 * scale)
+                else:
+                    pos = ((i % self.grid[0]) * tw + 6 * scale, (i // self.grid[0] + 1) * th
+                           - 4 * scale)
+                draw.text(pos, f"sample {i}", fill=colour, font=font, anchor="ld")
+        return np.asarray(im)
+
+
+def _shade_body(n: np.ndarray, base: np.ndarray, light: np.ndarray, forward: np.ndarray):
+    """Colours ``[M, 3]`` of body pixels with unit normals ``n [M, 3]``."""
+    view = -forward
+    half = light + view
+    half /= np.linalg.norm(half)
+    n = np.asarray(n, np.float32)
+    dots = rotate(n, np.stack([light, view, half]).astype(np.float32))
+    key = np.maximum(dots[:, 0], 0.0)
+    hemi = 0.5 + 0.5 * n[:, 2]
+    rim = (1.0 - np.clip(dots[:, 1], 0.0, 1.0)) ** 3
+    spec = np.maximum(dots[:, 2], 0.0) ** 40
+    c = base[None, :] * (0.30 + 0.20 * hemi + 0.55 * key)[:, None]
+    c += (0.10 * rim + 0.12 * spec)[:, None]
+    return np.clip(c, 0.0, 1.0).astype(np.float32)
+
+
+def _reduce(img: np.ndarray, s: int) -> np.ndarray:
+    """Mean of each ``s × s`` block of ``img [s·h, s·w, C]`` (strided sums: faster than
+    ``reshape(...).mean``)."""
+    out = img[::s, ::s].copy()
+    for dy in range(s):
+        for dx in range(s):
+            if dy or dx:
+                out += img[dy::s, dx::s]
+    out *= 1.0 / (s * s)
+    return out
+
+
+def _to_uint8(rgb: np.ndarray) -> np.ndarray:
+    return np.clip(rgb * 255.0 + 0.5, 0, 255).astype(np.uint8)
+
+
+# --------------------------------------------------------------------------- writers
+
+
+def _frame_indices(t: int, fps: float, out_fps: float | None, max_frames: int | None):
+    """Indices of the drawn frames (a whole stride) and the output frame rate."""
+    stride = 1
+    if out_fps is not None:
+        stride = max(1, round(fps / out_fps))
+    if max_frames is not None:
+        stride = max(stride, math.ceil(t / max_frames))
+    return np.arange(0, t, stride), fps / stride
+
+
+def render_video(path, clip: Clip, *, video_fps: float | None = None,
+                 max_frames: int | None = None) -> Path:
+    """Write ``clip`` to ``.mp4`` (H.264, streamed to ffmpeg) or ``.gif``, atomically.
+
+    Frames are drawn at a whole stride of the motion's: ``video_fps`` (None: every frame),
+    also at most ``max_frames`` frames; the clip keeps the motion's duration.
+    """
+    from jaxmotion.export.video import GIF_MAX_FPS, gif_bytes
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".mp4", ".gif"):
+        raise ValueError(f"render_video writes .mp4 or .gif, got {path.name!r}")
+    if suffix == ".mp4" and (clip.width % 2 or clip.height % 2):
+        raise ValueError(f"an .mp4 needs an even width and height, got {clip.width}×"
+                         f"{clip.height}")
+    if suffix == ".gif":
+        video_fps = min(video_fps or clip.fps, GIF_MAX_FPS)
+    frames, out_fps = _frame_indices(clip.bodies.num_frames, clip.fps, video_fps, max_frames)
+    if suffix == ".gif":
+        images = [clip.draw(f) for f in frames]
+        box = (0, 0, clip.width, clip.height)
+        data = gif_bytes(images, [box] * len(images), images[0], out_fps,
+                          [(255, 255, 255), (20, 20, 20)])
+        with atomic_open(path, "wb") as fh:
+            fh.write(data)
+        return path
+    import imageio_ffmpeg
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.mp4", dir=path.parent)
+    os.close(fd)
+    try:
+        writer = imageio_ffmpeg.write_frames(
+            tmp, (clip.width, clip.height), fps=out_fps, codec="libx264", macro_block_size=1,
+            quality=None, output_params=["-preset", "veryfast", "-crf", "20",
+                                         "-movflags", "+faststart"])
+        with warnings.catch_warnings():  # fork + exec of ffmpeg: JAX's fork warning is moot
+            warnings.filterwarnings("ignore", message="os.fork", category=RuntimeWarning)
+            writer.send(None)
+        try:
+            for f in frames:
+                writer.send(np.ascontiguousarray(clip.draw(f)))
+        finally:
+            writer.close()
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def render_still(path_png, clip: Clip, *, frame: int | None = None, ghosts: int = 0) -> Path:
+    """One PNG of ``clip`` at ``frame`` (None: the last), atomically. ``ghosts`` > 0 also
+    draws the bodies of that many other frames, evenly spread over the clip, faintly (for a
+    fixed camera: one picture that shows where the motion went)."""
+    import io
+
+    from PIL import Image
+
+    path = Path(path_png)
+    if path.suffix.lower() != ".png":
+        raise ValueError(f"render_still writes .png, got {path.name!r}")
+    t = clip.bodies.num_frames
+    frame = t - 1 if frame is None else int(frame)
+    if not -t <= frame < t:
+        raise ValueError(f"frame must be in [-{t}, {t}), got {frame}")
+    frame %= t
+    others = []
+    if ghosts > 0 and clip.mode == "fixed":
+        spread = np.linspace(0, t - 1, ghosts + 1).round().astype(int)
+        others = [int(g) for g in spread if g != frame][:ghosts]
+    buf = io.BytesIO()
+    Image.fromarray(clip.draw(frame, others)).save(buf, format="PNG")
+    with atomic_open(path, "wb") as fh:
+        fh.write(buf.getvalue())
+    return path

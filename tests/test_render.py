@@ -1,0 +1,309 @@
+"""The software renderer (jaxmotion.render): rasterizer against brute force, bodies, clips, CLI."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jaxmotion.render import raster
+
+# --------------------------------------------------------------------------- rasterizer
+
+
+def _brute_triangles(xy, z, faces, width, height, cull_back):
+    """Per pixel, per triangle: nearest depth and its face (−1: none), by plain loops over
+    pixel centres in float64; ``edge [H, W]`` marks centres within 1e-4 of an edge."""
+    depth = np.full((height, width), np.inf)
+    face = np.full((height, width), -1)
+    edge = np.zeros((height, width), bool)
+    for f, (a, b, c) in enumerate(faces):
+        (xa, ya), (xb, yb), (xc, yc) = xy[a], xy[b], xy[c]
+        area2 = (xb - xa) * (yc - ya) - (xc - xa) * (yb - ya)
+        if area2 == 0 or (cull_back and area2 > 0):
+            continue
+        for row in range(height):
+            for col in range(width):
+                px, py = col + 0.5, row + 0.5
+                w0 = ((xc - xb) * (py - yb) - (yc - yb) * (px - xb)) / area2
+                w1 = ((xa - xc) * (py - yc) - (ya - yc) * (px - xc)) / area2
+                w2 = 1.0 - w0 - w1
+                if min(w0, w1, w2) < -1e-4:
+                    continue
+                if min(abs(w0), abs(w1), abs(w2)) < 1e-4:
+                    edge[row, col] = True
+                if min(w0, w1, w2) < 0:
+                    continue
+                d = 1.0 / (w0 / z[a] + w1 / z[b] + w2 / z[c])
+                if d < depth[row, col]:
+                    depth[row, col], face[row, col] = d, f
+    return depth, face, edge
+
+
+@pytest.mark.parametrize("cull_back", [False, True])
+def test_triangles_match_a_brute_force_loop(cull_back):
+    rng = np.random.default_rng(0)
+    width, height = 40, 30
+    # small (sub-pixel to a few pixels), medium and large triangles, both windings,
+    # overlapping at different depths, some reaching outside the picture
+    centres = rng.uniform([-5, -5], [width + 5, height + 5], size=(24, 2))
+    sizes = np.repeat([0.7, 2.5, 6.0, 18.0], 6)
+    xy = (centres[:, None] + rng.normal(size=(24, 3, 2)) * sizes[:, None, None]).reshape(-1, 2)
+    z = rng.uniform(1.0, 5.0, size=len(xy))
+    faces = np.arange(len(xy)).reshape(-1, 3)
+    frags = raster.raster_triangles(xy, z, faces, width, height, cull_back=cull_back)
+    buf = raster.resolve(np.full(width * height, raster.EMPTY_KEY), frags)
+    got_depth = raster.depth_of_keys(buf).reshape(height, width)
+    got_face = raster.id_of_keys(buf).reshape(height, width)
+    want_depth, want_face, edge = _brute_triangles(xy, z, faces, width, height, cull_back)
+    clear = ~edge  # a centre exactly on an edge may go either way
+    assert (got_face >= 0).sum() > 200  # the test covers something
+    np.testing.assert_array_equal(got_face[clear], want_face[clear])
+    covered = clear & (want_face >= 0)
+    np.testing.assert_allclose(got_depth[covered], want_depth[covered], rtol=1e-5)
+    assert np.all(np.isinf(got_depth[clear & (want_face < 0)]))
+
+
+def test_a_closed_mesh_leaves_no_holes():
+    """A square cut into many tiny triangles covers every pixel centre inside it once."""
+    n = 30  # 30 × 30 cells of 0.8 px, two triangles each
+    g = np.stack(np.meshgrid(np.arange(n + 1), np.arange(n + 1)), -1).reshape(-1, 2) * 0.8 + 3.3
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
+    faces = np.concatenate([np.stack([a, c, b], -1), np.stack([b, c, d], -1)]).reshape(-1, 3)
+    frags = raster.raster_triangles(g.astype(float), np.full(len(g), 2.0), faces, 32, 32,
+                                    cull_back=False)
+    covered = np.zeros(32 * 32, bool)
+    covered[frags.pix] = True
+    cx = np.arange(32) + 0.5
+    inside = ((cx >= 3.3) & (cx <= 3.3 + 0.8 * n))
+    want = (inside[:, None] & inside[None, :]).reshape(-1)
+    np.testing.assert_array_equal(covered, want)
+
+
+def test_back_faces_are_culled():
+    xy = np.array([[2.0, 2.0], [2.0, 12.0], [12.0, 2.0]])  # clockwise on screen (y down)
+    z = np.ones(3)
+    front = raster.raster_triangles(xy, z, np.array([[0, 1, 2]]), 16, 16)
+    back = raster.raster_triangles(xy, z, np.array([[0, 2, 1]]), 16, 16)
+    assert len(front.pix) > 20 and len(back.pix) == 0
+
+
+def test_keys_order_by_depth_then_id():
+    k = raster.keys(np.array([2.0, 1.0, 1.0, 0.5]), np.array([0, 7, 3, 9]))
+    buf = raster.resolve(np.full(2, raster.EMPTY_KEY), raster.Fragments(np.array([0, 0, 0, 1]), k))
+    assert raster.id_of_keys(buf).tolist() == [3, 9]
+    assert raster.depth_of_keys(buf).tolist() == [1.0, 0.5]
+    assert raster.id_of_keys(np.array([raster.EMPTY_KEY])).tolist() == [-1]
+
+
+def test_surfels_cover_their_ellipse_with_plane_depths():
+    focal, cx, cy, w, h = 50.0, 20.0, 20.0, 40, 40
+    centre = np.array([[0.0, 0.0, 2.0], [0.6, 0.0, 3.0]])
+    tilt = np.array([0.0, np.sin(1.0), -np.cos(1.0)])  # a disc turned 57° about x
+    normal = np.array([[0.0, 0.0, 0.0], tilt])  # the first faces the camera (zero normal)
+    radius = np.array([0.3, 0.5])
+    frags = raster.raster_surfels(centre, normal, radius, focal, cx, cy, w, h)
+    ids = raster.id_of_keys(frags.key)
+    depth = raster.depth_of_keys(frags.key)
+    col, row = frags.pix % w, frags.pix // w
+    rx, ry = (col + 0.5 - cx) / focal, (row + 0.5 - cy) / focal
+    # facing disc: a circle of radius R f / z = 7.5 px around (20, 20), depth 2
+    a = ids == 0
+    r = np.hypot(col[a] + 0.5 - 20, row[a] + 0.5 - 20)
+    assert r.max() <= 7.5 + 0.6 and a.sum() == pytest.approx(np.pi * 7.5**2, rel=0.12)
+    np.testing.assert_allclose(depth[a], 2.0)
+    # slanted disc: each covered pixel's depth is where its ray meets the disc's plane, and
+    # that meeting point lies within the radius (0.5 m, with the ~0.5 px widening allowed)
+    b = ids == 1
+    t = (tilt @ centre[1]) / (tilt[0] * rx[b] + tilt[1] * ry[b] + tilt[2])
+    np.testing.assert_allclose(depth[b], t, rtol=0.03)
+    hit = np.stack([t * rx[b], t * ry[b], t], 1)
+    assert np.linalg.norm(hit - centre[1], axis=1).max() < 0.5 + 3 * 0.5 * 3.0 / focal
+    assert b.sum() > 0.6 * np.pi * (0.5 * focal / 3.0) ** 2 * np.cos(1.0)
+
+
+# --------------------------------------------------------------------------- bodies
+
+
+def _standing(t: int, walk: float = 0.0, k: int = 1, seed: int = 0):
+    """SMPL-X parameters of ``k`` bodies standing (walking ``walk`` metres along x over ``t``
+    frames), feet on the floor, and their joints."""
+    from jaxmotion.io.motion import smplx_joints_host
+
+    rng = np.random.default_rng(seed)
+    go = np.tile([np.pi / 2, 0.0, 0.0], (k, t, 1))
+    bp = rng.normal(size=(k, t, 21, 3)) * 0.05
+    tr = np.zeros((k, t, 3))
+    tr[..., 0] = np.linspace(0.0, walk, t)
+    tr[:, :, 1] = np.arange(k)[:, None] * 0.8
+    joints = np.stack([smplx_joints_host(go[s], bp[s], tr[s]) for s in range(k)])
+    lift = -joints[..., 2].min() + 0.08
+    tr[..., 2] += lift
+    joints[..., 2] += lift
+    return {"global_orient": go, "body_pose": bp, "transl": tr,
+            "betas": np.zeros((k, 10))}, joints
+
+
+def _room(n: int = 4000, seed: int = 1):
+    """A floor, a back wall and a box 'chair' (object 1) as points with normals."""
+    from jaxmotion.scene import Scene
+
+    rng = np.random.default_rng(seed)
+    floor = np.c_[rng.uniform(-2, 3, (n, 2)), np.zeros(n)]
+    wall = np.c_[rng.uniform(-2, 3, n // 2), np.full(n // 2, 2.0), rng.uniform(0, 2, n // 2)]
+    box = rng.uniform([0.6, 0.8, 0.0], [1.1, 1.3, 0.45], (n // 4, 3))
+    box[:, 2] = 0.45  # its seat
+    xyz = np.concatenate([floor, wall, box])
+    normal = np.concatenate([np.tile([0, 0, 1.0], (n, 1)), np.tile([0, -1.0, 0], (n // 2, 1)),
+                             np.tile([0, 0, 1.0], (n // 4, 1))])
+    rgb = np.concatenate([np.tile([0.6, 0.5, 0.4], (n, 1)), np.tile([0.8, 0.8, 0.8], (n // 2, 1)),
+                          np.tile([0.5, 0.2, 0.2], (n // 4, 1))])
+    instance = np.r_[np.full(n + n // 2, -1), np.full(n // 4, 1)]
+    objects = [{"id": 1, "category": "chair", "bbox_min": [0.6, 0.8, 0.0],
+                "bbox_max": [1.1, 1.3, 0.45]}]
+    return Scene(xyz, rgb, normal, instance=instance, objects=objects, name="test room")
+
+
+def test_host_skinning_matches_body_forward():
+    from jaxmotion.body import body_forward, load_mannequin
+    from jaxmotion.render import Bodies
+
+    p, _ = _standing(3, k=2)
+    p["betas"][1, :3] = [0.5, -0.3, 0.2]
+    bodies = Bodies.from_smplx(p["global_orient"], p["body_pose"], p["transl"], p["betas"],
+                               model=load_mannequin())
+    for s in range(2):
+        want = np.asarray(body_forward(load_mannequin(), p["global_orient"][s, 2],
+                                       p["body_pose"][s, 2], p["transl"][s, 2],
+                                       p["betas"][s]).vertices)
+        np.testing.assert_allclose(bodies.frame(2)[s], want, atol=2e-5)
+    assert bodies.frame(2).shape == (2, load_mannequin().num_vertices, 3)
+
+
+def _clip(size=(96, 72), t=4, k=1, walk=0.0, **options):
+    from jaxmotion.render import Bodies, Clip
+
+    p, joints = _standing(t, walk, k)
+    room = _room()
+    bodies = Bodies.from_smplx(p["global_orient"], p["body_pose"], p["transl"], p["betas"])
+    return Clip(bodies, joints, 30.0, room.xyz, room.rgb, scene_normal=room.normal,
+                highlight=room.instance == 1, instance=room.instance, text="stand",
+                size=size, **options)
+
+
+def test_a_frame_shows_the_body_where_its_vertices_project():
+    from jaxmotion.render.frames import body_colour
+
+    clip = _clip(size=(160, 120))
+    img = clip.draw(2).astype(float) / 255
+    assert img.shape == (120, 160, 3)
+    xy, _ = clip.cameras[2].project(clip.bodies.frame(2)[0])
+    col, row = np.floor(xy).astype(int).T
+    assert col.min() > 0 and col.max() < 159 and row.min() > 0 and row.max() < 119
+
+    def bluish(c):  # lit or in shade; the room is brown, grey, white and amber
+        return c[..., 2] > 1.3 * c[..., 0] + 0.02
+
+    assert bluish(body_colour(0)) and bluish(0.3 * body_colour(0))
+    blue = bluish(img)
+    near = blue.copy()  # silhouette pixels are blends of body and room: next to blue ones
+    near[1:] |= blue[:-1]
+    near[:-1] |= blue[1:]
+    near[:, 1:] |= blue[:, :-1]
+    near[:, :-1] |= blue[:, 1:]
+    assert blue[row, col].mean() > 0.75
+    assert near[row, col].mean() > 0.98  # fingertips are thinner than a pixel
+    box = np.zeros_like(blue)  # and nothing blue away from the body (a T-pose: thin arms)
+    box[row.min() - 1: row.max() + 2, col.min() - 1: col.max() + 2] = True
+    assert blue[box].mean() > 0.1 and blue[~box].sum() == 0
+
+
+def test_frames_are_deterministic_and_the_target_is_highlighted():
+    a = _clip().draw(1)
+    b = _clip().draw(1)
+    np.testing.assert_array_equal(a, b)
+    amber = (a[..., 0].astype(int) - a[..., 2] > 120) & (a[..., 1] > 90)
+    assert amber.sum() > 5  # the chair's seat, tinted
+
+
+def test_follow_camera_pans_smoothly_and_grid_tiles():
+    clip = _clip(size=(64, 48), t=150, walk=6.0, camera="auto")
+    assert clip.mode == "follow" and clip.plan.zoom > 1.2
+    cx = np.array([c.cx for c in clip.cameras])
+    assert np.abs(np.diff(cx, 2)).max() < 1.0  # no jumps: smoothed
+    assert clip.draw(0).shape == clip.draw(149).shape == (48, 64, 3)  # crops at the ends
+    grid = _clip(size=(64, 48), k=2, samples="grid")
+    assert grid.grid == (2, 1) and grid.draw(0).shape == (48, 64, 3)
+    with pytest.raises(ValueError, match="overlay"):
+        _clip(samples="side")
+    with pytest.raises(ValueError, match="camera"):
+        _clip(camera="orbit")
+
+
+def test_video_and_still_files(tmp_path):
+    import imageio.v3 as iio
+
+    from jaxmotion.render import render_still, render_video
+
+    clip = _clip(size=(64, 48), t=6)
+    path = render_video(tmp_path / "m.mp4", clip, video_fps=15)
+    frames = iio.imread(path, plugin="FFMPEG")
+    assert frames.shape == (3, 48, 64, 3)  # 6 frames at 30 fps drawn at 15
+    png = render_still(tmp_path / "m.png", clip, frame=-1)
+    assert iio.imread(png).shape == (48, 64, 3)
+    with pytest.raises(ValueError, match=".mp4 or .gif"):
+        render_video(tmp_path / "m.avi", clip)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.mp4", "m.png"]
+
+
+# --------------------------------------------------------------------------- command line
+
+
+def _saved_sample(tmp_path):
+    """A dataset-like folder: samples/test/x.npz with scenes/<scene_id>.npz beside it."""
+    from jaxmotion.scene import save_scene
+
+    p, joints = _standing(5)
+    (tmp_path / "data" / "samples" / "test").mkdir(parents=True)
+    (tmp_path / "data" / "scenes").mkdir()
+    save_scene(_room(), tmp_path / "data" / "scenes" / "room7.npz")
+    sample = tmp_path / "data" / "samples" / "test" / "room7_00.npz"
+    np.savez(sample, text=np.array("stand by the chair"), action=np.array("walk"),
+             scene_id=np.array("room7"), target_id=np.int64(1), joints=joints[0],
+             fps=np.float64(30.0), mask=np.ones(5, bool), transl=p["transl"][0],
+             global_orient=p["global_orient"][0], body_pose=p["body_pose"][0],
+             betas=p["betas"][0])
+    return sample
+
+
+def test_render_command_draws_a_dataset_sample(tmp_path, capsys):
+    import imageio.v3 as iio
+
+    from jaxmotion.cli import main
+
+    sample = _saved_sample(tmp_path)
+    out = tmp_path / "still.png"
+    assert main(["render", str(sample), "--out", str(out), "--size", "64x48", "--frame", "2"]) == 0
+    assert iio.imread(out).shape == (48, 64, 3)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["nope.npz", "--out", "x.mp4"], "no such file"),
+    (["SAMPLE", "--out", "x.mp4", "--size", "65x48"], "even"),
+    (["SAMPLE", "--out", "x.mp4", "--size", "big"], "WIDTHxHEIGHT"),
+    (["SAMPLE", "--out", "x.avi"], ".mp4, .gif or .png"),
+    (["SAMPLE", "--out", "x.png", "--scene", "missing.ply"], "no such file"),
+    (["SCENE", "--out", "x.png"], "not a motion.npz"),
+])
+def test_render_command_errors_are_one_line(tmp_path, capsys, args, message):
+    from jaxmotion.cli import main
+
+    sample = _saved_sample(tmp_path)
+    scene = tmp_path / "data" / "scenes" / "room7.npz"
+    args = [str(sample) if a == "SAMPLE" else str(scene) if a == "SCENE" else
+            str(tmp_path / a) if a.startswith(("x.", "missing")) else a for a in args]
+    assert main(["render", *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
+    assert not (tmp_path / "x.mp4").exists() and not (tmp_path / "x.png").exists()

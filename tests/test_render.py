@@ -307,3 +307,24 @@ def test_render_command_errors_are_one_line(tmp_path, capsys, args, message):
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
     assert not (tmp_path / "x.mp4").exists() and not (tmp_path / "x.png").exists()
+
+
+def test_frames_drawn_by_threads_are_the_frames_drawn_one_by_one():
+    from jaxmotion.render.frames import drawn_frames
+
+    class Counting:
+        def __init__(self):
+            self.calls = []
+
+        def draw(self, f):
+            self.calls.append(f)
+            return np.full((4, 4, 3), f % 251, np.uint8)
+
+    frames = list(range(0, 40, 3))
+    one = list(drawn_frames(Counting(), frames, workers=1))
+    clip = Counting()
+    two = list(drawn_frames(clip, frames, workers=2))
+    assert [int(a[0, 0, 0]) for a in two] == [f % 251 for f in frames]
+    assert all(np.array_equal(a, b) for a, b in zip(one, two, strict=True))
+    assert clip.calls[0] == frames[0] and sorted(clip.calls) == frames
+    assert list(drawn_frames(Counting(), [], workers=2)) == []

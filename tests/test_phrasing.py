@@ -78,6 +78,25 @@ PHRASINGS = {
     "get up from the desk": ("stand_up", "desk", None, ()),
     "sit by the bed": ("sit", "bed", None, ()),
     "lie down by the window": ("lie", "window", None, ()),
+    # a class name used as a verb ("sink", "seat", "bed"), and still a name after an article
+    "sink down onto the loveseat": ("sit", "sofa", None, ()),
+    "seat yourself on the bench": ("sit", "sofa", None, ()),
+    "bed down on the couch for the night": ("lie", "sofa", None, ()),
+    "wash your hands at the sink by the mirror": (None, "sink", "closest", ("mirror",)),
+    "go over to the sink in the corner": ("walk", "sink", None, ()),
+    # the object of another clause ("you are on the X by the Y; get up": the X)
+    "you are seated on the stool by the door; get up": ("stand_up", "stool", "closest",
+                                                        ("door",)),
+    "stand up and walk away from the armchair near the lamp":
+        ("stand_up", "armchair", "closest", ("lamp",)),
+    "grab the stool near the sink and sit down": ("sit", "stool", "closest", ("sink",)),
+    # the preposition before a seat says the way the body goes
+    "scramble out of the recliner": ("stand_up", "armchair", None, ()),
+    "jump down off the bar stool": ("stand_up", "stool", None, ()),
+    "stand yourself up out of the sofa": ("stand_up", "sofa", None, ()),
+    "spring up onto the ottoman": ("sit", "stool", None, ()),
+    "plunk yourself onto the chair": ("sit", "chair", None, ()),
+    "walk away from the chair": ("walk", "chair", None, ()),  # walking, not getting up
     # no action of the four, or no object
     "dance around": (None, None, None, ()),
     "kick the chair": (None, "chair", None, ()),

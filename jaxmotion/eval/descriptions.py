@@ -133,7 +133,7 @@ def evaluate_descriptions(data_dir, rows=None, *, recognizer=None, seed: int = 0
     - ``recognized`` (with a ``recognizer``, a workdir or a loaded one): the recognizer
       labels the motion with the row's action (the share of the K motions).
 
-    Case ``i`` uses seed ``seed + i`` in both rows. ``options``: :func:`jaxmotion.generate`
+    Case ``i`` (a row's ``index`` when it has one) uses seed ``seed + i`` in both rows. ``options``: :func:`jaxmotion.generate`
     options (``checkpoints``, ``pipeline``, ``steps``, ...; ``fit`` is off unless given).
     Returns a JSON-ready report: ``settings``, ``cases`` (one dict per case and phrasing) and
     ``summary`` (per phrasing: overall, per action, and for the descriptions the failure
@@ -152,7 +152,7 @@ def evaluate_descriptions(data_dir, rows=None, *, recognizer=None, seed: int = 0
         rows, version = load_descriptions(rows)
     else:
         version = None
-    rows = [dict(r, index=i) for i, r in enumerate(rows)][:num_cases]
+    rows = [dict(r, index=r.get("index", i)) for i, r in enumerate(rows)][:num_cases]
     if samples < 1 or not rows:
         raise ValueError("need samples ≥ 1 and at least one description")
     if recognizer is not None and isinstance(recognizer, (str, Path)):

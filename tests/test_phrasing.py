@@ -90,6 +90,11 @@ PHRASINGS = {
     "stand up and walk away from the armchair near the lamp":
         ("stand_up", "armchair", "closest", ("lamp",)),
     "grab the stool near the sink and sit down": ("sit", "stool", "closest", ("sink",)),
+    # where you are is not a request; a weak verb joins the action before it
+    "you're sitting on the stool by the window, please get up":
+        ("stand_up", "stool", "closest", ("window",)),
+    "lie down and unwind on the couch": ("lie", "sofa", None, ()),
+    "please be seated on the bench": ("sit", "sofa", None, ()),
     # the preposition before a seat says the way the body goes
     "scramble out of the recliner": ("stand_up", "armchair", None, ()),
     "jump down off the bar stool": ("stand_up", "stool", None, ()),
@@ -178,3 +183,12 @@ def test_tokenize_folds_unicode_and_contractions():
     assert tokenize("I'd like you to") == ["i", "would", "like", "you", "to"]
     assert tokenize("椅子") == [] and tokenize("") == []
     assert len(tokenize("chair " * 1000)) == 400
+
+
+def test_one_motion_told_in_two_verbs_is_not_a_story():
+    from jaxmotion.planning.steps import is_story
+
+    for text in ("lie down and unwind on the couch", "you are seated on the armchair; get up",
+                 "you've been sitting on the stool for ages, stand up"):
+        assert not is_story(text), text
+    assert is_story("get up from the chair and lie down on the bed")

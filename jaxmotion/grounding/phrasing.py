@@ -169,6 +169,10 @@ def read_phrasing(text) -> Reading:
             gap in (["that", "be"], ["which", "be"], ["that", "s"]) and v.start - 2 in mention_ends)
         if described and after_object and v.kind in ("strong", "weak"):
             continue  # "the lamp sitting on the table": describes the object
+        if _says_where_you_are(lem, v.start) and v.kind in ("strong", "weak"):
+            notes.append(f"'{' '.join(raw[v.start:v.end])}' says where you are: not read as "
+                         "the action")
+            continue
         kept.append(v)
     verbs = kept
     for v in verbs:
@@ -189,8 +193,13 @@ def read_phrasing(text) -> Reading:
             prev = [u.target for u in verbs[:k] if u.target is not None]
             before = [m for m in mentions if m[1] <= v.start]
             v.target = prev[-1] if prev else _clause_head(before, breaks)
-    for v in verbs:
+    for k, v in enumerate(verbs):
         v.action = _verb_action(v)
+        u = verbs[k - 1] if k else None
+        if (v.kind == "weak" and u is not None and u.action in ("sit", "lie")
+                and lem[u.end:v.start] in ([], ["and"]) and v.target is not None
+                and (v.target[3] or v.target[2] in action_classes(u.action))):
+            v.action = u.action  # "lie down and relax on the sofa": one motion, lying
     acting = [v for v in verbs if v.action is not None]
     chosen = max(acting, key=lambda v: (_PRIORITY[v.action], v.target is not None, -v.start),
                  default=None)
@@ -262,6 +271,15 @@ def _before_determiners(raw, s: int) -> int:
             and " ".join(raw[k - 2:k]) not in lx.DIRECT_PREPOSITIONS:
         k -= 1
     return k
+
+
+def _says_where_you_are(lem, start: int) -> bool:
+    """Whether the verb at ``start`` describes the present state ("you are seated on the
+    chair", "you're sitting on it", "you've been sitting there"), not a request."""
+    p = start + (1 if lem[start] == "be" else 0)
+    return lem[max(p - 2, 0):p] == ["you", "be"] or lem[max(p - 3, 0):p] in (
+        ["you", "have", "been"], ["you", "have", "be"]) or (p == start + 1 and lem[
+            max(start - 1, 0):start] == ["you"])
 
 
 def _clause_head(before, breaks):

@@ -27,6 +27,7 @@ def test_failure_classes_in_order():
     assert failure_class(_case()) == ""
     assert failure_class(_case(judged=0.0)) == "motion"
     assert failure_class(_case(error="boom", action_read=None)) == "error"
+    assert failure_class(_case(action_read=None, pipeline="story")) == "several motions"
     assert failure_class(_case(action_read=None, grounded=False)) == "no action read"
     assert failure_class(_case(action_read="walk")) == "wrong action"
     assert failure_class(_case(grounded=False)) == "wrong instance"

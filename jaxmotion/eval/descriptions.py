@@ -60,7 +60,7 @@ def load_descriptions(path=None) -> tuple[list[dict], str]:
 #: the two phrasings scored on the same targets and seeds
 PHRASINGS = ("descriptions", "templates")
 #: why a description's case failed, in the order they are told apart (:func:`failure_class`)
-FAILURES = ("error", "no action read", "wrong action", "no class read", "wrong class",
+FAILURES = ("error", "several motions", "no action read", "wrong action", "no class read", "wrong class",
             "wrong instance", "motion")
 
 
@@ -80,11 +80,14 @@ def template_text(graph, row: dict, seed: int) -> str | None:
 
 def failure_class(case: dict) -> str:
     """The first of :data:`FAILURES` a scored case falls in ("" when it succeeded by the
-    judge): generate raised; the action was not read or read wrong; the target's class not
+    judge): generate raised; the text was read as several motions (told as a story); the
+    action was not read or read wrong; the target's class not
     read, or another class chosen; another object of the right class chosen; or the text was
     understood (action and object) and the motion failed the judge."""
     if case.get("error"):
         return "error"
+    if case.get("pipeline") == "story":
+        return "several motions"
     if case["action_read"] is None:
         return "no action read"
     if case["action_read"] != case["action"]:

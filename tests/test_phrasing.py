@@ -84,6 +84,7 @@ PHRASINGS = {
     "bed down on the couch for the night": ("lie", "sofa", None, ()),
     "wash your hands at the sink by the mirror": (None, "sink", "closest", ("mirror",)),
     "go over to the sink in the corner": ("walk", "sink", None, ()),
+    "sit on the leather armchair in the corner": ("sit", "armchair", None, ()),
     # the object of another clause ("you are on the X by the Y; get up": the X)
     "you are seated on the stool by the door; get up": ("stand_up", "stool", "closest",
                                                         ("door",)),

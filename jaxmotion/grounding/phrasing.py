@@ -129,11 +129,11 @@ def read_phrasing(text) -> Reading:
     free = [w != "|" for w in raw]
     notes: list[str] = []
     idioms = [i for i in spans(lem, ix["idioms"], free)
-              if not (i[2][0] == "generic" and _used_as_verb(raw, i[0], i[1]))]
+              if not (i[2][0] == "generic" and _used_as_verb(raw, lem, i[0], i[1]))]
     for s, e, _ in idioms:
         free[s:e] = [False] * (e - s)
     # "sink into the armchair", "seat yourself", "bed down": a name used as a verb
-    objects = [o for o in spans(raw, ix["objects"], free) if not _used_as_verb(raw, o[0], o[1])]
+    objects = [o for o in spans(raw, ix["objects"], free) if not _used_as_verb(raw, lem, o[0], o[1])]
     # "desk chair", "sofa table": of two names in a row the second is the object
     objects = [o for k, o in enumerate(objects)
                if not (k + 1 < len(objects) and objects[k + 1][0] == o[1])]
@@ -250,16 +250,21 @@ _ONTO = ("onto", "into")
 _ON = ("on", "upon", "atop", "in", "on top of", *_ONTO)
 
 
-def _used_as_verb(raw, s: int, e: int) -> bool:
-    """Whether the one-word name ``raw[s:e]`` is used as a verb: followed by a particle or
-    "yourself" ("sink into the armchair", "seat yourself", "you are seated on the chair"),
-    and not after an article, determiner or preposition ("the sink", "by the sink in the
-    corner", "on seat 3")."""
+#: words after which a clause's verb comes ("please sink into…", "and then seat yourself…",
+#: "you are seated…")
+_VERB_POSITION = ("|", "and", "then", "or", "so", "please", "pls", "kindly", "just", "now",
+                  "first", "finally", "you", "be")
+
+
+def _used_as_verb(raw, lem, s: int, e: int) -> bool:
+    """Whether the one-word name ``raw[s:e]`` is used as a verb: where a clause's verb goes
+    (the text's start, after "and", "please", "you are", …) and followed by a particle or
+    "yourself" ("sink into the armchair", "seat yourself", "you are seated on the chair");
+    not "the sink in the corner", "the leather armchair in the corner", "no fridge in
+    here"."""
     if e - s != 1 or e >= len(raw) or raw[e] not in _VERB_PARTICLES:
         return False
-    prev = raw[s - 1] if s > 0 else "|"
-    return prev not in (*lx.DETERMINERS, *_ARTICLES, *lx.DIRECT_PREPOSITIONS, *_BESIDE,
-                        *_TOWARDS, "toward", "of", "for", "with")
+    return s == 0 or lem[s - 1] in _VERB_POSITION
 
 
 def _before_determiners(raw, s: int) -> int:

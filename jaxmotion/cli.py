@@ -301,12 +301,19 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     from jaxmotion.eval.runner import evaluate, format_markdown, parse_model, write_report
 
     enable_compilation_cache()
+    if args.descriptions is not None:
+        return _eval_descriptions(args)
+    if not args.model:
+        raise ValueError("eval needs --model NAME=ADM,AMDM[,...] (or --descriptions)")
+    if args.grounding not in ("auto", "adm"):
+        raise ValueError(f"--grounding {args.grounding} is for --descriptions; a --model row "
+                         "finds its regions with auto or adm")
     models = [parse_model(m) for m in args.model]
     names = [m.name for m in models]
     if len(set(names)) != len(names):
         raise ValueError(f"--model names must be unique, got {names}")
-    report = evaluate(args.data, models, split=args.split, num_cases=args.cases,
-                      samples=args.samples, replications=args.replications, seed=args.seed,
+    report = evaluate(args.data, models, split=args.split, num_cases=args.cases or 64,
+                      samples=args.samples or 4, replications=args.replications, seed=args.seed,
                       body=not args.joints_only, evaluator=args.evaluator,
                       recognizer=args.recognizer,
                       vertex_stride=args.vertex_stride, batch_size=args.batch_size,
@@ -315,6 +322,27 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     paths = write_report(report, args.out)
     print(format_markdown(report))
     print(f"wrote {paths[0]} and {paths[1]}", file=sys.stderr)
+    return 0
+
+
+def _eval_descriptions(args: argparse.Namespace) -> int:
+    """``jaxmotion eval --descriptions [FILE]``: generate on each description and on the
+    template sentence of the same target, scored (:mod:`jaxmotion.eval.descriptions`)."""
+    from jaxmotion.eval.descriptions import evaluate_descriptions, format_markdown, write_report
+
+    if args.model:
+        raise ValueError("--descriptions runs jaxmotion generate's own pipeline (the shipped "
+                         "checkpoints, or --checkpoints ADM AMDM); leave out --model")
+    options = {"grounding": args.grounding, "pipeline": args.pipeline}
+    if args.checkpoints:
+        options["checkpoints"] = tuple(args.checkpoints)
+    report = evaluate_descriptions(args.data, args.descriptions or None,
+                                   recognizer=args.recognizer, seed=args.seed,
+                                   samples=args.samples or 1, num_cases=args.cases,
+                                   templates=not args.no_templates, **options)
+    paths = write_report(report, args.out)
+    print(format_markdown(report))
+    print(f"wrote {', '.join(str(p) for p in paths)}", file=sys.stderr)
     return 0
 
 
@@ -538,7 +566,7 @@ def build_parser() -> argparse.ArgumentParser:
         "find where a model fails.",
     )
     p.add_argument("--data", required=True, help="dataset folder (jaxmotion synth)")
-    p.add_argument("--model", action="append", required=True, metavar="NAME=ADM,AMDM[,SAMPLER][,OPT=G]",
+    p.add_argument("--model", action="append", metavar="NAME=ADM,AMDM[,SAMPLER][,OPT=G]",
                    help="a row: name, ADM and AMDM workdirs (or .safetensors), sampler ddimN "
                    "(default ddim50) or ddpm, and optionally adm_guidance=G / amdm_guidance=G "
                    "(classifier-free guidance scale per stage, default 1), consistency=S "
@@ -546,8 +574,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "affordance=gt (the "
                    "AMDM on ground-truth maps: the AMDM's own error); repeat for more rows")
     p.add_argument("--split", default="test", choices=("train", "val", "test"))
-    p.add_argument("--cases", type=int, default=64, help="cases from the split (default 64)")
-    p.add_argument("--samples", type=int, default=4, help="samples per case, K (default 4)")
+    p.add_argument("--cases", type=int, default=None,
+                   help="cases from the split (default 64; with --descriptions: all)")
+    p.add_argument("--samples", type=int, default=None,
+                   help="samples per case, K (default 4; with --descriptions 1)")
     p.add_argument("--replications", type=int, default=3, help="R (default 3)")
     p.add_argument("--evaluator", default=None, help="text-motion evaluator workdir (optional)")
     p.add_argument("--recognizer", default=None,
@@ -563,9 +593,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="paper (default): crop each case around the dataset's motion, as the "
                    "papers do; generate: crop where `jaxmotion generate` would, from the room "
                    "and the text alone (scores the whole job, finding the object included)")
-    p.add_argument("--grounding", choices=("auto", "adm"), default="auto",
+    p.add_argument("--grounding", choices=("auto", "adm", "llm"), default="auto",
                    help="with --protocol generate: how the region is found, as `jaxmotion "
-                   "generate --grounding` (default auto)")
+                   "generate --grounding` (default auto; llm only with --descriptions)")
+    p.add_argument("--descriptions", nargs="?", const="", default=None, metavar="FILE",
+                   help="instead of --model rows: run `jaxmotion generate` on each "
+                   "instruction of a description set (JSONL: scene, target_id, action, text; "
+                   "without FILE the shipped set written by hand for the rooms of "
+                   "`jaxmotion synth --seed 9001`, --data being that build) and on the "
+                   "synthetic generator's sentence for the same target and seed; reports "
+                   "target grounding and action accuracy (geometric judge, and --recognizer) "
+                   "for both phrasings, and why descriptions failed")
+    p.add_argument("--no-templates", action="store_true",
+                   help="with --descriptions: score the descriptions only")
+    p.add_argument("--pipeline", choices=("auto", "affordance", "object-centric", "cvae"),
+                   default="auto",
+                   help="with --descriptions: generate's pipeline (default auto)")
+    p.add_argument("--checkpoints", nargs=2, metavar=("ADM", "AMDM"), default=None,
+                   help="with --descriptions: generate's ADM and AMDM (default: the shipped)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--save-motions", action="store_true",
                    help="also write the sampled joints to OUT/motions.npz (per model, in each "

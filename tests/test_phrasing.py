@@ -78,6 +78,31 @@ PHRASINGS = {
     "get up from the desk": ("stand_up", "desk", None, ()),
     "sit by the bed": ("sit", "bed", None, ()),
     "lie down by the window": ("lie", "window", None, ()),
+    # a class name used as a verb ("sink", "seat", "bed"), and still a name after an article
+    "sink down onto the loveseat": ("sit", "sofa", None, ()),
+    "seat yourself on the bench": ("sit", "sofa", None, ()),
+    "bed down on the couch for the night": ("lie", "sofa", None, ()),
+    "wash your hands at the sink by the mirror": (None, "sink", "closest", ("mirror",)),
+    "go over to the sink in the corner": ("walk", "sink", None, ()),
+    "sit on the leather armchair in the corner": ("sit", "armchair", None, ()),
+    # the object of another clause ("you are on the X by the Y; get up": the X)
+    "you are seated on the stool by the door; get up": ("stand_up", "stool", "closest",
+                                                        ("door",)),
+    "stand up and walk away from the armchair near the lamp":
+        ("stand_up", "armchair", "closest", ("lamp",)),
+    "grab the stool near the sink and sit down": ("sit", "stool", "closest", ("sink",)),
+    # where you are is not a request; a weak verb joins the action before it
+    "you're sitting on the stool by the window, please get up":
+        ("stand_up", "stool", "closest", ("window",)),
+    "lie down and unwind on the couch": ("lie", "sofa", None, ()),
+    "please be seated on the bench": ("sit", "sofa", None, ()),
+    # the preposition before a seat says the way the body goes
+    "scramble out of the recliner": ("stand_up", "armchair", None, ()),
+    "jump down off the bar stool": ("stand_up", "stool", None, ()),
+    "stand yourself up out of the sofa": ("stand_up", "sofa", None, ()),
+    "spring up onto the ottoman": ("sit", "stool", None, ()),
+    "plunk yourself onto the chair": ("sit", "chair", None, ()),
+    "walk away from the chair": ("walk", "chair", None, ()),  # walking, not getting up
     # no action of the four, or no object
     "dance around": (None, None, None, ()),
     "kick the chair": (None, "chair", None, ()),
@@ -159,3 +184,12 @@ def test_tokenize_folds_unicode_and_contractions():
     assert tokenize("I'd like you to") == ["i", "would", "like", "you", "to"]
     assert tokenize("椅子") == [] and tokenize("") == []
     assert len(tokenize("chair " * 1000)) == 400
+
+
+def test_one_motion_told_in_two_verbs_is_not_a_story():
+    from jaxmotion.planning.steps import is_story
+
+    for text in ("lie down and unwind on the couch", "you are seated on the armchair; get up",
+                 "you've been sitting on the stool for ages, stand up"):
+        assert not is_story(text), text
+    assert is_story("get up from the chair and lie down on the bed")

@@ -128,10 +128,12 @@ def read_phrasing(text) -> Reading:
     ix = indexes()
     free = [w != "|" for w in raw]
     notes: list[str] = []
-    idioms = spans(lem, ix["idioms"], free)
+    idioms = [i for i in spans(lem, ix["idioms"], free)
+              if not (i[2][0] == "generic" and _used_as_verb(raw, lem, i[0], i[1]))]
     for s, e, _ in idioms:
         free[s:e] = [False] * (e - s)
-    objects = spans(raw, ix["objects"], free)
+    # "sink into the armchair", "seat yourself", "bed down": a name used as a verb
+    objects = [o for o in spans(raw, ix["objects"], free) if not _used_as_verb(raw, lem, o[0], o[1])]
     # "desk chair", "sofa table": of two names in a row the second is the object
     objects = [o for k, o in enumerate(objects)
                if not (k + 1 < len(objects) and objects[k + 1][0] == o[1])]
@@ -167,6 +169,10 @@ def read_phrasing(text) -> Reading:
             gap in (["that", "be"], ["which", "be"], ["that", "s"]) and v.start - 2 in mention_ends)
         if described and after_object and v.kind in ("strong", "weak"):
             continue  # "the lamp sitting on the table": describes the object
+        if _says_where_you_are(lem, v.start) and v.kind in ("strong", "weak"):
+            notes.append(f"'{' '.join(raw[v.start:v.end])}' says where you are: not read as "
+                         "the action")
+            continue
         kept.append(v)
     verbs = kept
     for v in verbs:
@@ -186,16 +192,26 @@ def read_phrasing(text) -> Reading:
         if v.target is None:  # "walk to the bed and lie down", "the chair: sit on it"
             prev = [u.target for u in verbs[:k] if u.target is not None]
             before = [m for m in mentions if m[1] <= v.start]
-            v.target = prev[-1] if prev else (before[-1] if before else None)
-    for v in verbs:
+            v.target = prev[-1] if prev else _clause_head(before, breaks)
+    for k, v in enumerate(verbs):
         v.action = _verb_action(v)
+        u = verbs[k - 1] if k else None
+        if (v.kind == "weak" and u is not None and u.action in ("sit", "lie")
+                and lem[u.end:v.start] in ([], ["and"]) and v.target is not None
+                and (v.target[3] or v.target[2] in action_classes(u.action))):
+            v.action = u.action  # "lie down and relax on the sofa": one motion, lying
     acting = [v for v in verbs if v.action is not None]
-    chosen = max(acting, key=lambda v: (_PRIORITY[v.action], -v.start), default=None)
+    chosen = max(acting, key=lambda v: (_PRIORITY[v.action], v.target is not None, -v.start),
+                 default=None)
     # "get up from the chair and walk to the door": two motions (walking to an object
     # before lying on it is one)
     several = len({v.target[:2] for v in acting if v.target is not None}) > 1 or len(
         {v.action for v in acting} - {"walk"}) > 1
-    target = chosen.target if chosen is not None else (mentions[0] if mentions else None)
+    target = chosen.target if chosen is not None else None
+    if target is None:  # "stand up and leave the chair": the object of another verb
+        others = sorted((v for v in verbs if v.target is not None),
+                        key=lambda v: abs(v.start - (chosen.start if chosen else 0)))
+        target = others[0].target if others else (mentions[0] if mentions else None)
     for v in verbs:
         if v.action is None and v.kind == "weak":
             notes.append(f"'{' '.join(raw[v.start:v.end])}' is read as an action only on a "
@@ -216,9 +232,97 @@ def read_phrasing(text) -> Reading:
             k -= 1
         out.update(action="walk", action_how="destination",
                    action_words=" ".join(raw[k:target[0]]))
+    if target is not None and out.get("target") is not None:
+        _by_preposition(out, raw, target, chosen, notes)
     out["object_phrase"] = "" if target is not None else _object_phrase(raw, free, chosen)
     out["query"] = _query(raw, lem, mentions, ix)
     return Reading(**out, notes=tuple(notes))
+
+
+#: words right after a verb ("sink into", "seat yourself", "bed down"): a class name
+#: followed by one, and not by an article or preposition before it, is used as a verb
+_VERB_PARTICLES = ("into", "onto", "down", "back", "up", "yourself", "yourselves", "in", "on",
+                   "out", "off", "over")
+#: prepositions of leaving an object ("hop down off the stool", "push up out of the chair")
+_SOURCE = ("off", "off of", "out of", "from")
+#: prepositions of getting onto or into an object ("hop up onto the stool")
+_ONTO = ("onto", "into")
+_ON = ("on", "upon", "atop", "in", "on top of", *_ONTO)
+
+
+#: words after which a clause's verb comes ("please sink into…", "and then seat yourself…",
+#: "you are seated…")
+_VERB_POSITION = ("|", "and", "then", "or", "so", "please", "pls", "kindly", "just", "now",
+                  "first", "finally", "you", "be")
+
+
+def _used_as_verb(raw, lem, s: int, e: int) -> bool:
+    """Whether the one-word name ``raw[s:e]`` is used as a verb: where a clause's verb goes
+    (the text's start, after "and", "please", "you are", …) and followed by a particle or
+    "yourself" ("sink into the armchair", "seat yourself", "you are seated on the chair");
+    not "the sink in the corner", "the leather armchair in the corner", "no fridge in
+    here"."""
+    if e - s != 1 or e >= len(raw) or raw[e] not in _VERB_PARTICLES:
+        return False
+    return s == 0 or lem[s - 1] in _VERB_POSITION
+
+
+def _before_determiners(raw, s: int) -> int:
+    """Where the determiners before the name at ``s`` start ("onto that big | chair"): the
+    preposition ends there. "of" is a determiner ("the edge of the bed") except in "out of" /
+    "off of"."""
+    k = s
+    while k > 0 and raw[k - 1] in lx.DETERMINERS and raw[k - 1] not in lx.DIRECT_PREPOSITIONS \
+            and " ".join(raw[k - 2:k]) not in lx.DIRECT_PREPOSITIONS:
+        k -= 1
+    return k
+
+
+def _says_where_you_are(lem, start: int) -> bool:
+    """Whether the verb at ``start`` describes the present state ("you are seated on the
+    chair", "you're sitting on it", "you've been sitting there"), not a request."""
+    p = start + (1 if lem[start] == "be" else 0)
+    return lem[max(p - 2, 0):p] == ["you", "be"] or lem[max(p - 3, 0):p] in (
+        ["you", "have", "been"], ["you", "have", "be"]) or (p == start + 1 and lem[
+            max(start - 1, 0):start] == ["you"])
+
+
+def _clause_head(before, breaks):
+    """Of the names ``before`` a verb (``(start, end, class, generic)``), the first of the
+    last clause that has one: "you are on the chair by the table; stand up" is the chair's
+    (not the table's, which says where the chair is)."""
+    if not before:
+        return None
+    last = before[-1][0]
+    cut = max([b + 1 for b in breaks if b < last] + [0])
+    return next(m for m in before if m[0] >= cut)
+
+
+def _by_preposition(out: dict, raw, target, chosen, notes) -> None:
+    """The action from the preposition before a seat when the verb does not say it (or says
+    the other way): leaving it ("hop down off the stool", "stand yourself up out of the
+    chair": getting up) and getting onto it ("hop up onto the stool": sitting; "plant
+    yourself on the chair", a verb the word lists do not know: sitting). Updates ``out`` in
+    place."""
+    prep, cls, action = out.get("preposition", ""), out["target"], out.get("action")
+    k = _before_determiners(raw, target[0]) - len(prep.split())
+    if cls not in SEAT_CATEGORIES or not prep or (k > 0 and raw[k - 1] == "away"):
+        return
+    if prep in _SOURCE and action in (None, "walk"):
+        new = "stand_up"
+    elif (prep in _ONTO and action == "stand_up") or (
+            prep in _ON and action is None and cls != "bed"):
+        new = "sit"
+    else:
+        return
+    if chosen is None:
+        j = k
+        while j > 0 and raw[j - 1] not in ("|", "and") and k - j < 3:
+            j -= 1
+        out["action_words"] = " ".join(raw[j:k])
+    notes.append(f"read '{out.get('action_words', '')} {prep} the {out['target_words']}' as "
+                 f"{new} ({'leaving' if prep in _SOURCE else 'getting onto'} a seat)")
+    out.update(action=new, action_how="preposition")
 
 
 def _negated(lem, start: int) -> bool:
@@ -256,9 +360,7 @@ def _target_fields(raw, lem, free, target, mentions, verbs, breaks, notes, actio
         out["generic"] = True
         return out
     out["target"] = cls
-    k = s
-    while k > 0 and raw[k - 1] in lx.DETERMINERS and raw[k - 1] not in lx.DIRECT_PREPOSITIONS:
-        k -= 1
+    k = _before_determiners(raw, s)
     prep = ""
     for size in (3, 2, 1):
         if k - size >= 0 and " ".join(raw[k - size:k]) in (

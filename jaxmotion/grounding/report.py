@@ -96,6 +96,8 @@ def explain(room, instruction, chosen, how: str, options=None, *, echo: bool = F
     else:
         action_from = {"words": f"the words '{r.action_words}'",
                        "object": f"'{r.action_words}' with a {r.target or 'seat'}",
+                       "preposition": f"'{r.action_words} {r.preposition} the "
+                                      f"{r.target_words}': the way it goes",
                        "destination": f"'{r.action_words} {r.preposition} the "
                                       f"{r.target_words}': going to a place",
                        "similarity": "the meaning of the words (sentence encoder)"}.get(

@@ -58,7 +58,8 @@ class Instruction:
       reading: what the word lists read (:class:`~jaxmotion.grounding.phrasing.Reading`).
       action_how: how the action was read: ``words``, ``object`` (a verb such as "rest"
         whose action depends on the object), ``destination`` (an unknown verb going "to" an
-        object), ``similarity`` (the sentence encoder's nearest action prototype) or ``""``.
+        object), ``preposition`` (off / out of a seat: getting up; onto it: sitting),
+        ``similarity`` (the sentence encoder's nearest action prototype) or ``""``.
       notes: what was guessed or ignored while reading, for the user.
       similarity: the :class:`~jaxmotion.grounding.similarity.TextSimilarity` it was read
         with (also used to match unknown object words with the room's classes), or None.

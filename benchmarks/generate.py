@@ -14,7 +14,7 @@ names no object of the demo room, so the room is tiled; one leaves the ADM two c
 two rounds of the same kinds: the first round may trace a program for a new shape (once per
 cache), the second is what a user typing new sentences gets from then on.
 
-    python benchmarks/generate.py [--runs 3] [--steps 20] [--video gif|mp4|none] [--consistency S]
+    python benchmarks/generate.py [--runs 3] [--steps 20] [--video mp4|gif|none] [--consistency S]
         [--adm-candidates C] [--adm-steps N] [--motion-candidates M] [--new-texts]
         [--pipeline auto|affordance|object-centric] [--object-checkpoints DIR | TRAJ COMP]
 """
@@ -76,7 +76,8 @@ def main():
     ap.add_argument("--runs", type=int, default=3, help="warm runs (default 3)")
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--samples", type=int, default=1)
-    ap.add_argument("--video", default="gif", choices=("gif", "mp4", "none"))
+    ap.add_argument("--video", default="mp4", choices=("gif", "mp4", "none"),
+                    help="the video written (default: mp4, as jaxmotion generate)")
     ap.add_argument("--checkpoints", nargs="+", default=None)
     ap.add_argument("--pipeline", default="auto", choices=("auto", "affordance", "object-centric"),
                     help="which pipeline generate runs (default: generate's own, auto; time two "

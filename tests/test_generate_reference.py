@@ -13,7 +13,8 @@ and say so in ``docs/results.md``. Recorded: by commit 34eaf24 before the restru
 when the motion selection stopped keeping jumps and the AMDM changed (issue 20). ``room_3`` again
 on 2026-11-26: its joints predated the deliberate change that sends "sit on the sofa" in a room
 without a sofa to one of its seats (commit 9e9067b and the speed work after it give the same
-joints there).
+joints there); ``room_4`` again the same day: a text naming no object now targets the
+object the ADM's map lights most in its strongest tile, and the ADM is told it.
 """
 
 from __future__ import annotations

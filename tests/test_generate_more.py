@@ -90,9 +90,26 @@ def test_shipped_default():
     assert r.joints[..., 2].min() > -0.1  # nobody sinks into the floor
 
 
+def _bare_demo():
+    """The demo room without its labels: no object table, so no target can be known."""
+    import dataclasses
+
+    from jaxmotion.scene.demo import load_scene_arg
+
+    room = load_scene_arg("demo", 20000)
+    return dataclasses.replace(room, instance=np.full(room.num_points, -1, np.int32),
+                               semantic=np.full(room.num_points, -1, np.int32), objects=())
+
+
 def test_text_naming_no_object_tiles_the_room(ckpt):
+    """The room is tiled; in a labelled room the object the map lights most in the strongest
+    tile is the target, in a room without objects there is none."""
     r = jaxmotion.generate("demo", "dance around for a while", checkpoints=ckpt, fit=False,
                            **FAST)
+    assert r.grounding == "adm peak" and r.joints.shape == (1, 120, 22, 3)
+    assert r.target_id in {int(o["id"]) for o in r.scene.objects}
+    r = jaxmotion.generate(_bare_demo(), "dance around for a while", checkpoints=ckpt,
+                           fit=False, **FAST)
     assert r.target_id is None and r.joints.shape == (1, 120, 22, 3)
 
 
@@ -216,8 +233,8 @@ def test_text_only_adm_when_no_target_is_known(ckpt, tmp_path, monkeypatch):
         return real(adm, amdm)
 
     monkeypatch.setattr(G, "load_pipeline", spy)
-    r = jaxmotion.generate("demo", "dance around for a while", checkpoints=folder, fit=False,
-                           aot=False, **FAST)
+    r = jaxmotion.generate(_bare_demo(), "dance around for a while", checkpoints=folder,
+                           fit=False, aot=False, **FAST)
     assert r.target_id is None and used and set(used) == {G.TEXT_ADM}
     used.clear()
     r = jaxmotion.generate("demo", "sit on the chair next to the table", checkpoints=folder,
@@ -230,10 +247,7 @@ def test_the_default_pipeline_is_object_centric_when_the_target_is_known(ckpt, t
     target is found, or when the text names no object and the ADM's strongest tile holds one
     (a walk to it when no action is understood either); the affordance pipeline when no
     target is (a scene without objects)."""
-    import dataclasses
-
     from jaxmotion.options import GenerateOptions
-    from jaxmotion.scene.demo import load_scene_arg
 
     assert GenerateOptions().pipeline == "auto"
     kw = dict(checkpoints=ckpt, steps=2, adm_steps=2, fit=False, aot=False)
@@ -245,9 +259,7 @@ def test_the_default_pipeline_is_object_centric_when_the_target_is_known(ckpt, t
     assert r.pipeline == "object-centric" and r.grounding == "adm peak"
     assert r.target_id in {int(o["id"]) for o in r.scene.objects}
     assert any("a walk to" in n for n in r.understanding.notes)
-    room = load_scene_arg("demo", 20000)
-    bare = dataclasses.replace(room, instance=np.full(room.num_points, -1, np.int32),
-                               semantic=np.full(room.num_points, -1, np.int32), objects=())
+    bare = _bare_demo()
     r = jaxmotion.generate(bare, "dance around for a while", **kw)
     assert r.pipeline == "affordance" and r.target_id is None
     with pytest.raises(GenerateError, match="needs a target object"):

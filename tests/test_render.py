@@ -328,3 +328,22 @@ def test_frames_drawn_by_threads_are_the_frames_drawn_one_by_one():
     assert all(np.array_equal(a, b) for a, b in zip(one, two, strict=True))
     assert clip.calls[0] == frames[0] and sorted(clip.calls) == frames
     assert list(drawn_frames(Counting(), [], workers=2)) == []
+
+
+def test_vertex_normals_by_incidence_match_the_scattered_sum():
+    """The renderer's per-frame normals (one sparse product) are the exporters' (a scattered
+    sum of area-weighted face normals), against a brute-force loop."""
+    from jaxmotion.export._common import face_incidence, vertex_normals
+
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(40, 3)).astype(np.float32)
+    f = np.stack([rng.choice(39, 3, replace=False) for _ in range(60)])  # vertex 39: no face
+    want = np.zeros((40, 3))
+    for a, b, c in f:
+        n = np.cross(v[b] - v[a], v[c] - v[a])
+        for i in (a, b, c):
+            want[i] += n
+    want /= np.maximum(np.linalg.norm(want, axis=1, keepdims=True), 1e-30)
+    for got in (vertex_normals(v, f), vertex_normals(v, f, face_incidence(f, 40))):
+        np.testing.assert_allclose(got, want, atol=1e-5)
+        assert np.all(got[39] == 0)

@@ -10,8 +10,7 @@ never holds all its meshes in memory. Betas other than the model's anchor use it
 space (exact for a user's SMPL-X model; first-order for the mannequin, see
 :mod:`jaxmotion.body.model`).
 
-Vertex normals are area-weighted face normals summed per vertex (:func:`vertex_normals`, a
-sparse incidence product). Nothing here calls BLAS: on a machine shared with other work its
+Nothing here calls BLAS: on a machine shared with other work its
 threads cost more than they save (a frame took twice as long with them).
 """
 
@@ -19,21 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Bodies", "vertex_normals"]
+from jaxmotion.export.rotations import rotvec_to_matrix
 
-
-def _rodrigues(aa: np.ndarray) -> np.ndarray:
-    """Axis-angle ``[..., 3]`` → rotation matrices ``[..., 3, 3]`` (float64)."""
-    aa = np.asarray(aa, np.float64)
-    theta = np.linalg.norm(aa, axis=-1)
-    small = theta < 1e-8
-    safe = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0 - theta**2 / 6, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - theta**2 / 24, (1 - np.cos(safe)) / safe**2)
-    x, y, z = aa[..., 0], aa[..., 1], aa[..., 2]
-    zero = np.zeros_like(x)
-    k = np.stack([zero, -z, y, z, zero, -x, -y, x, zero], -1).reshape(*aa.shape[:-1], 3, 3)
-    return np.eye(3) + a[..., None, None] * k + b[..., None, None] * (k @ k)
+__all__ = ["Bodies"]
 
 
 class Bodies:
@@ -95,7 +82,7 @@ class Bodies:
                 for s, m in enumerate(models)]
         aa = np.concatenate([go[:, :, None], bp, np.broadcast_to(
             fixed[22:], (k, t, num_joints - 22, 3))], axis=2)
-        local = _rodrigues(aa)  # [K, T, J, 3, 3]
+        local = rotvec_to_matrix(aa)  # [K, T, J, 3, 3]
         # affine [K, T, J, 3, 4] per joint: v ↦ G_j v + (p_j − G_j b_j)
         affine = np.empty((k, t, num_joints, 3, 4))
         for s in range(k):
@@ -150,32 +137,3 @@ def _influences(weights: np.ndarray, most: int = 8):
     ww /= ww.sum(1, keepdims=True)
     blocks = np.searchsorted(count[perm], np.arange(c), side="right")
     return idx, ww, blocks, perm
-
-
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray, incidence=None) -> np.ndarray:
-    """Unit area-weighted vertex normals ``[V, 3]`` (zero for a vertex in no face).
-
-    ``incidence``: the sparse ``[V, F]`` 0/1 matrix of :func:`face_incidence` for ``faces`` (built
-    when None; pass it when the same faces are used for many frames)."""
-    if incidence is None:
-        incidence = face_incidence(faces, len(vertices))
-    v = np.asarray(vertices, np.float32)
-    a, b, c = v[faces[:, 0]], v[faces[:, 1]], v[faces[:, 2]]
-    e1, e2 = b - a, c - a
-    fn = np.empty_like(e1)  # the cross product, written out (np.cross is slower here)
-    fn[:, 0] = e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]
-    fn[:, 1] = e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]
-    fn[:, 2] = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    acc = incidence @ fn
-    norm = np.linalg.norm(acc, axis=1, keepdims=True)
-    return acc / np.where(norm > 0, norm, 1.0)
-
-
-def face_incidence(faces: np.ndarray, num_vertices: int):
-    """Sparse ``[V, F]`` matrix with a 1 where vertex v is a corner of face f (scipy CSR)."""
-    from scipy.sparse import csr_matrix
-
-    f = np.asarray(faces, np.int64)
-    rows = f.reshape(-1)
-    cols = np.repeat(np.arange(len(f)), 3)
-    return csr_matrix((np.ones(len(rows), np.float32), (rows, cols)), shape=(num_vertices, len(f)))

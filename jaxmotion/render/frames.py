@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion._atomic import atomic_open
-from jaxmotion.export._common import PALETTE
+from jaxmotion.export._common import PALETTE, face_incidence, vertex_normals
 from jaxmotion.render import raster
-from jaxmotion.render.body import Bodies, face_incidence, vertex_normals
+from jaxmotion.render.body import Bodies
 from jaxmotion.render.camera import ELEVATION_DEG, Camera, frame_box, plan_cameras, rotate
 from jaxmotion.render.scene import CutawayHoles, SceneLayer, ShadowMap, light_direction
 

@@ -156,8 +156,8 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     target_obj = None if opts.object_id is None else find_object(room, opts.object_id)
     instruction = read_instruction(text, similarity=xla_cache / "text-embeddings")
     emb = embed_one(text, xla_cache / "text-embeddings", 0)  # the ADM's words: when it runs
-    text_emb = functools.cache(lambda: embed_one(text, xla_cache / "text-embeddings",
-                                                 adm_text_tokens(models.adm_config)))
+    text_emb = functools.cache(lambda: embed_one(text, xla_cache / "text-embeddings", t)
+                               if (t := adm_text_tokens(models.adm_config)) else emb)
     # the root key's two stage keys (region / room view, then sampling) are split inside the
     # compiled programs, or eagerly only on the paths that need the first: an eager split is
     # an XLA compilation in every fresh process (~0.1 s)
@@ -203,11 +203,12 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         joints, crop = cvae.sample_in_room(room, centre, text, instruction.action, opts,
                                            models.files, root, aot_dir, versions)
     elif pipeline == "object-centric":  # sensors around the target
-        from jaxmotion.pipelines.object_centric import peak_walk, sample_in_room
+        from jaxmotion.grounding.region import sampled_action
+        from jaxmotion.pipelines.object_centric import sample_in_room
 
         joints, crop, exact = sample_in_room(room, centre, chosen, instruction.anchor_first,
                                              emb, opts, models.files, root, aot_dir, versions,
-                                             instruction.action or peak_walk(how))
+                                             sampled_action(instruction.action, how, chosen))
     if pipeline != "affordance":
         aff, excluded, n_cand, n_mot = (np.zeros((k, len(crop[0]), 6), np.float32), (), 0,
                                         1 if pipeline == "cvae" else opts.motion_candidates)

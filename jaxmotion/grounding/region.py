@@ -27,7 +27,8 @@ from jaxmotion.errors import GenerateError
 from jaxmotion.grounding.target import ground_candidates
 
 __all__ = ["AdmChooser", "centre_on_object", "choose_region", "clamp_centre", "find_region",
-           "lit", "peak_object", "region_from_view", "room_view_maps", "tile_centres"]
+           "lit", "peak_object", "region_from_view", "room_view_maps", "sampled_action",
+           "tile_centres"]
 
 
 @dataclass(frozen=True)
@@ -182,6 +183,16 @@ def choose_region(adm: AdmChooser, room, candidates, spec, lo, hi):
     if target is None:
         return np.asarray(tiles[i]), None
     return centre_on_object(target, lo, hi, spec.size), int(target["id"])
+
+
+def sampled_action(action, how: str, chosen):
+    """The action the motion is sampled as: the instruction's (``Instruction.action``), or,
+    when it names none and no object either (``how`` ``"adm peak"``) but a target was found
+    where the ADM's map is strongest (``chosen``), a walk to it; else None (the models read
+    the text as written)."""
+    if action is None and how == "adm peak" and chosen is not None:
+        return "walk"
+    return action
 
 
 def peak_object(room, instance, maps):

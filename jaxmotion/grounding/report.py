@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 from jaxmotion.grounding.objects import object_table
 from jaxmotion.grounding.phrasing import canonical_category
+from jaxmotion.grounding.region import sampled_action
 from jaxmotion.grounding.target import Instruction, ground_candidates, read_instruction
 
 __all__ = ["Understanding", "explain", "relation_hint"]
@@ -89,7 +90,7 @@ def explain(room, instruction, chosen, how: str, options=None, *, echo: bool = F
     action_from = ""
     if ins.action is None:
         done = ("with no object named either, it is done as a walk to the object the ADM's map "
-                "lights most" if how == "adm peak" and chosen is not None else
+                "lights most" if sampled_action(None, how, chosen) == "walk" else
                 "the text goes to them as written, so expect one of those")
         warns.append(f"could not tell which action {ins.text!r} asks for: jaxmotion's models "
                      f"{_ACTIONS}; {done} (say e.g. 'walk to the door' or 'sit on the chair')")
@@ -137,7 +138,7 @@ def explain(room, instruction, chosen, how: str, options=None, *, echo: bool = F
                          + (f" or name a relation: {hint}" if hint else ""))
         else:
             notes.append(f"target: {target} ({_how(how, found, r)})")
-            if how == "adm peak" and ins.action is None:
+            if ins.action is None and sampled_action(None, how, chosen) == "walk":
                 notes.append(f"action: a walk to {target} (none understood, no object named)")
     if warn:
         for w in warns:

@@ -52,7 +52,6 @@ __all__ = [
     "furniture_mask",
     "keeps_out_of_target",
     "load_object_pipeline",
-    "peak_walk",
     "sample_in_room",
     "trajectory_sensors",
 ]
@@ -332,13 +331,6 @@ def load_object_pipeline(trajectory: str, completion: str) -> ObjectCentricPipel
     except (KeyError, ValueError) as e:
         raise GenerateError(f"checkpoints {trajectory} and {completion} do not load together: "
                             f"{e}") from e
-
-
-def peak_walk(how: str):
-    """The action sampled when the instruction names none (``Instruction.action`` None): a walk
-    to the target when the text named no object either (``how`` ``"adm peak"``: the target is
-    where the ADM's map is strongest), else None (the models read the text as written)."""
-    return "walk" if how == "adm peak" else None
 
 
 def action_index(action) -> int:

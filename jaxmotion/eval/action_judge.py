@@ -70,6 +70,7 @@ __all__ = [
     "action_report",
     "judge_action",
     "judge_actions",
+    "judge_on_object",
 ]
 
 ACTIONS: tuple[str, ...] = ("walk", "sit", "stand_up", "lie")
@@ -350,3 +351,20 @@ def judge_actions(
     else:
         sh = jnp.broadcast_to(jnp.asarray(surface_height, jnp.float32), (b,))
     return _report_batch(joints, mask, ids, lo, hi, points, point_mask, sh)
+
+
+def judge_on_object(joints, mask, action, bbox_min, bbox_max, points,
+                    surface_height=None) -> dict[str, np.ndarray]:
+    """:func:`judge_actions` for the K motions ``joints [K, T, 22, 3]`` that all do ``action``
+    on one object: its box ``bbox_min``, ``bbox_max`` ``[3]``, its points ``[N, 3]`` (none: the
+    box's low corner stands in) and its surface height (None or NaN: estimated); ``mask``
+    ``[K, T]`` or None. Returns numpy ``[K]`` arrays."""
+    k = joints.shape[0]
+    pts = np.asarray(points, np.float32).reshape(-1, 3)
+    if not len(pts):
+        pts = np.asarray(bbox_min, np.float32)[None]
+    surface = np.nan if surface_height is None else float(surface_height)
+    rep = judge_actions(joints, mask, [action] * k, np.tile(bbox_min, (k, 1)),
+                        np.tile(bbox_max, (k, 1)), np.broadcast_to(pts, (k, *pts.shape)),
+                        surface_height=np.full(k, surface, np.float32))
+    return {key: np.asarray(v) for key, v in jax.device_get(rep).items()}

@@ -102,22 +102,12 @@ def failure_class(case: dict) -> str:
 def _judge(room, obj, joints, action) -> dict:
     """The geometric judge on the motions ``joints [K,T,22,3]`` (scene frame) against the
     room's object ``obj``: ``success`` and its checks, one value per motion."""
-    import jax
+    from jaxmotion.eval.action_judge import judge_on_object
 
-    from jaxmotion.eval.action_judge import judge_actions
-
-    k, t = joints.shape[:2]
-    pts = room.xyz[room.instance == obj["id"]]
-    if not len(pts):
-        pts = np.asarray(obj["bbox_min"], np.float32)[None]
-    surface = obj.get("surface_height")
-    rep = jax.device_get(judge_actions(
-        joints, np.ones((k, t), bool), [action] * k,
-        np.tile(np.asarray(obj["bbox_min"], np.float32), (k, 1)),
-        np.tile(np.asarray(obj["bbox_max"], np.float32), (k, 1)),
-        np.broadcast_to(pts.astype(np.float32), (k, *pts.shape)),
-        surface_height=np.full(k, np.nan if surface is None else float(surface), np.float32)))
-    return {key: np.asarray(v) for key, v in rep.items()}
+    return judge_on_object(joints, np.ones(joints.shape[:2], bool), action,
+                           np.asarray(obj["bbox_min"], np.float32),
+                           np.asarray(obj["bbox_max"], np.float32),
+                           room.xyz[room.instance == obj["id"]], obj.get("surface_height"))
 
 
 def evaluate_descriptions(data_dir, rows=None, *, recognizer=None, seed: int = 0,

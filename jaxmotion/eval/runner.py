@@ -368,9 +368,7 @@ def _action_columns(case, joints, recognizer) -> dict:
     """The share of the K motions ``joints [K,T,22,3]`` that do the case's action on its
     target, by the geometric judge (``action_judged``, and its checks as ``judge/<name>``,
     :data:`JUDGE_DETAILS`) and by the recognizer (``action_recognized``, with one)."""
-    import jax
-
-    from jaxmotion.eval.action_judge import judge_actions
+    from jaxmotion.eval.action_judge import judge_on_object
 
     k = joints.shape[0]
     mask = np.broadcast_to(case["mask"], joints.shape[:2])
@@ -381,10 +379,7 @@ def _action_columns(case, joints, recognizer) -> dict:
     box = _target_box(case)
     if box is not None or len(target):
         lo, hi, surface = box if box is not None else (target.min(0), target.max(0), np.nan)
-        pts = target if len(target) else np.broadcast_to(lo, (1, 3))
-        rep = jax.device_get(judge_actions(
-            joints, mask, [case["action"]] * k, np.tile(lo, (k, 1)), np.tile(hi, (k, 1)),
-            np.broadcast_to(pts, (k, *pts.shape)), surface_height=np.full(k, surface)))
+        rep = judge_on_object(joints, mask, case["action"], lo, hi, target, surface)
         out["action_judged"] = float(np.mean(rep["success"]))
         for name in JUDGE_DETAILS:  # which of the judge's checks fail, to see why
             out[f"judge/{name}"] = nan_mean(rep[name])

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["LIFT_BYTES", "cached_call", "code_digest", "digest"]
+__all__ = ["LIFT_BYTES", "cached_call", "cached_program", "code_digest", "digest", "prefetch",
+           "prefetched", "specs_of"]
 
 
 def digest(*parts) -> str:
@@ -46,60 +47,155 @@ LIFT_BYTES = 1 << 20
 
 
 def cached_call(cache_dir: Path | None, name: str, fingerprint: str, build, args):
-    """``build()(*args)`` through a serialized ``jax.export`` artefact in ``cache_dir``.
+    """``build()(*args)`` through a serialized ``jax.export`` artefact in ``cache_dir``
+    (:func:`cached_program` for ``args``' shapes, then called on them)."""
+    return cached_program(cache_dir, name, fingerprint, build, specs_of(args))(*args)
+
+
+def specs_of(args):
+    """``args`` as ``jax.ShapeDtypeStruct`` leaves (the shapes a program is kept for)."""
+    import jax
+
+    return jax.tree.map(lambda a: jax.ShapeDtypeStruct(np.shape(a), np.asarray(a).dtype), args)
+
+
+def cached_program(cache_dir: Path | None, name: str, fingerprint: str, build, specs):
+    """The compiled ``build()`` for arguments of shapes ``specs``, through a serialized
+    ``jax.export`` artefact in ``cache_dir``: a callable taking the arguments.
 
     A new process otherwise spends seconds re-tracing the samplers and the LBFGS fit (and
     building the networks) before the persistent compilation cache can even be consulted;
-    the artefact holds the traced program, so a repeated command only deserializes it.
-    ``fingerprint`` must change with anything else that changes the program (weights,
-    sampler, versions); argument shapes and jaxmotion's sources are added here.
+    the artefact holds the traced program, so a repeated command only deserializes it and
+    loads its executable from XLA's cache. ``fingerprint`` must change with anything else
+    that changes the program (weights, sampler, versions); argument shapes and jaxmotion's
+    sources are added here. A program :func:`prefetch` started loading is taken from there.
 
     The constants the traced program closes over (the networks' weights) are lifted out of it
-    when they come to :data:`LIFT_BYTES` or more: the program takes them as arguments and they
-    are kept beside it (``<artefact>.npz``). A program with its weights baked in compiles to
-    an executable of their size, and loading that from XLA's cache took longer than running
-    it (0.66 s of a 1.8 s sampling, for 21 MB of weights); the weights themselves load in
-    milliseconds. The numbers are the same either way.
+    when they come to :data:`LIFT_BYTES` or more: the program takes them as arguments and
+    they are kept beside it (``<artefact>.npz``). A program with
+    its weights baked in compiles to an executable of their size, and loading that took
+    longer than running it; the weights themselves load in milliseconds. The numbers are the
+    same either way.
     """
+    path = _artefact(cache_dir, name, fingerprint, specs)
+    pending = _PENDING.pop(str(path), None) if path is not None else None
+    if pending is not None and pending.exception() is None:  # waits for it
+        return pending.result()
+    return _load_program(path, build, specs)  # a failed prefetch's error surfaces here
+
+
+def prefetch(cache_dir: Path | None, name: str, fingerprint: str, specs) -> bool:
+    """Start loading the kept program :func:`cached_program` will be asked for (same
+    arguments but ``build``) in a background thread, so that reading it, lowering it and
+    loading its executable overlap the work before it is called. Only a program already on
+    disk is prefetched (tracing stays on the caller's thread). Returns whether it started."""
+    path = _artefact(cache_dir, name, fingerprint, specs)
+    if path is None or not path.is_file() or str(path) in _PENDING:
+        return False
+    import threading
+    from concurrent.futures import Future
+
+    future: Future = Future()
+
+    def load():
+        try:
+            future.set_result(_load_program(path, None, specs))
+        except BaseException as e:  # noqa: BLE001 - handed to the caller by cached_program
+            future.set_exception(e)
+
+    _PENDING[str(path)] = future
+    threading.Thread(target=load, name=f"prefetch {name}", daemon=True).start()
+    return True
+
+
+#: Programs :func:`prefetch` is loading, by artefact path, until :func:`cached_program` takes
+#: them.
+_PENDING: dict = {}
+
+
+def prefetched() -> tuple[str, ...]:
+    """The artefacts :func:`prefetch` started loading that no :func:`cached_program` call has
+    taken yet (a prefetch for shapes that never came)."""
+    return tuple(_PENDING)
+
+
+def _artefact(cache_dir, name: str, fingerprint: str, specs) -> Path | None:
+    import jax
+
+    if cache_dir is None:
+        return None
+    fingerprint = digest(fingerprint, code_digest(),
+                         [(s.shape, str(s.dtype)) for s in jax.tree.leaves(specs)])
+    return Path(cache_dir) / f"{name}-{fingerprint}.jaxexport"
+
+
+def _load_program(path: Path | None, build, specs):
+    """The compiled program kept at ``path`` (traced with ``build()`` and kept there when it
+    is not; ``build=None``: only read). ``path=None``: traced and run without a cache."""
+    import jax
+
+    exp = None
+    if path is not None and path.is_file():
+        consts_path = path.with_suffix(".npz")
+        try:
+            from jax import export as jexport
+
+            exp = jexport.deserialize(bytearray(path.read_bytes()))
+            consts = _read_consts(consts_path)
+        except Exception:  # a stale or damaged artefact is rebuilt below
+            if build is None:
+                raise
+            path.unlink(missing_ok=True)
+            consts_path.unlink(missing_ok=True)
+            exp = None
+    if exp is None:
+        if build is None:
+            raise FileNotFoundError(path)
+        exp, consts = _export(path, build, specs)
+    if path is None:  # no cache: the program as export runs it
+        return exp.call if consts is None else functools.partial(exp.call, consts)
+    call_specs = specs if consts is None else (specs_of(consts), *specs)
+    program = jax.jit(exp.call).lower(*call_specs).compile()
+    return program if consts is None else functools.partial(program, consts)
+
+
+def _read_consts(consts_path: Path):
+    """The lifted constants kept beside a program, or None when it keeps its own."""
+    if not consts_path.is_file():
+        return None
+    with np.load(consts_path, allow_pickle=False) as z:
+        return tuple(z[f"c{i}"] for i in range(len(z.files)))
+
+
+def _export(path: Path | None, build, specs):
+    """Trace ``build()`` for ``specs``, lift its large constants, and keep the exported
+    program (and the constants) at ``path`` when there is one and its folder takes it:
+    ``(exported, consts or None)``."""
     import jax
     from jax import export as jexport
 
-    specs = jax.tree.map(lambda a: jax.ShapeDtypeStruct(np.shape(a), np.asarray(a).dtype), args)
-    fingerprint = digest(fingerprint, code_digest(),
-                         [(s.shape, str(s.dtype)) for s in jax.tree.leaves(specs)])
-    path = None if cache_dir is None else Path(cache_dir) / f"{name}-{fingerprint}.jaxexport"
-    consts_path = None if path is None else path.with_suffix(".npz")
-    if path is not None and path.is_file():
-        try:
-            exp = jexport.deserialize(bytearray(path.read_bytes()))
-            if consts_path.is_file():
-                with np.load(consts_path, allow_pickle=False) as z:
-                    consts = tuple(z[f"c{i}"] for i in range(len(z.files)))
-                return exp.call(consts, *args)
-            return exp.call(*args)
-        except Exception:  # noqa: BLE001 - a stale or damaged artefact is rebuilt below
-            path.unlink(missing_ok=True)
-            consts_path.unlink(missing_ok=True)
     fn, consts = _lift_constants(build(), specs)
     if consts is None:
         exp = jexport.export(jax.jit(fn))(*specs)
     else:
         const_specs = tuple(jax.ShapeDtypeStruct(c.shape, c.dtype) for c in consts)
         exp = jexport.export(jax.jit(fn))(const_specs, *specs)
-    if path is not None:
-        try:
-            from jaxmotion._atomic import atomic_open
+    if path is None:
+        return exp, consts
+    consts_path = path.with_suffix(".npz")
+    try:
+        from jaxmotion._atomic import atomic_open
 
-            if consts is not None:  # written first: a program is only read with its weights
-                with atomic_open(consts_path, "wb") as f:
-                    np.savez(f, **{f"c{i}": c for i, c in enumerate(consts)})
-            else:
-                consts_path.unlink(missing_ok=True)
-            with atomic_open(path, "wb") as f:
-                f.write(exp.serialize())
-        except (OSError, ImportError):
-            pass  # a read-only cache, or no flatbuffers to serialize with: run uncached
-    return exp.call(*args) if consts is None else exp.call(consts, *args)
+        if consts is not None:  # written first: a program is only read with its weights
+            with atomic_open(consts_path, "wb") as f:
+                np.savez(f, **{f"c{i}": c for i, c in enumerate(consts)})
+        else:
+            consts_path.unlink(missing_ok=True)
+        with atomic_open(path, "wb") as f:
+            f.write(exp.serialize())
+    except (OSError, ImportError):
+        pass  # a read-only cache, or no flatbuffers to serialize with: run uncached
+    return exp, consts
 
 
 def _lift_constants(fn, specs):

@@ -10,9 +10,8 @@
 
 This module only orchestrates; each stage lives in its own module:
 
-1. **validate** the options (:class:`jaxmotion.options.GenerateOptions`), the text
-   (:func:`jaxmotion.text.condition.check_text`) and the checkpoints
-   (:mod:`jaxmotion.pipelines.checkpoints`), before anything heavy is loaded;
+1. **validate** the options (:class:`jaxmotion.options.GenerateOptions`), the text and the
+   checkpoints (:mod:`jaxmotion.pipelines.checkpoints`) before anything heavy is loaded;
 2. **load** the scene (:func:`jaxmotion.scene.demo.load_scene_arg`: ``"demo"``, a path or a
    :class:`~jaxmotion.scene.Scene`) and warn when it does not look z-up with its floor at 0;
 3. **ground** (:mod:`jaxmotion.grounding`): the target object from ``object_id``, the scene
@@ -20,9 +19,9 @@ This module only orchestrates; each stage lives in its own module:
    the candidates; the crop square the models see is centred on it (or on the room's
    strongest predicted affordance when the text names no object of the room);
 4. **synthesize** the K samples in one compiled, vmapped program (kept on disk by
-   :mod:`jaxmotion.compiled`): ``pipeline="auto"`` (the default) runs the object-centric
-   pipeline (:mod:`jaxmotion.pipelines.object_centric`: sensors, root trajectory, body) when
-   the target object is known, else the affordance one (:mod:`jaxmotion.pipelines.affordance`:
+   :mod:`jaxmotion.compiled`, loaded while stage 3 runs): ``pipeline="auto"`` (the default)
+   runs the object-centric pipeline (:mod:`jaxmotion.pipelines.object_centric`: sensors,
+   root trajectory, body) when the target object is known, else the affordance one (:mod:`jaxmotion.pipelines.affordance`:
    ADM maps, then AMDM motions; a known target's class mates are kept out of the maps);
    ``motion_candidates`` motions per sample, the plausible one reaching the target kept;
    ``pipeline="cvae"``: the HUMANISE baseline (:mod:`jaxmotion.pipelines.cvae`) on the square;
@@ -133,6 +132,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     from jaxmotion.grounding import AdmChooser, explain, find_object, find_region, read_instruction
     from jaxmotion.grounding.region import centre_on_object
     from jaxmotion.pipelines.checkpoints import adm_text_tokens
+    from jaxmotion.pipelines.object_centric import prefetch_sampler
     from jaxmotion.scene.checks import scene_warnings
     from jaxmotion.scene.demo import load_scene_arg
     from jaxmotion.text.condition import embed_one
@@ -148,27 +148,28 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
             print(f"  {name:<10} {times[name]:6.2f} s", file=sys.stderr, flush=True)
 
     xla_cache = enable_compilation_cache()
+    aot_dir = xla_cache / "programs" if opts.aot else None
+    versions = (jax.__version__, __version__)
+    root = seed_key_data(opts.seed)  # jax.random.key(seed)'s data, made on the host
+    if models.files and opts.pipeline in ("auto", "object-centric"):  # loads while grounding
+        prefetch_sampler(opts, models.files, root, aot_dir, versions)
     room = load_scene_arg(scene, opts.num_points)
     if room.num_points == 0:
         raise GenerateError("the scene has no points")
     for message in scene_warnings(room):
         warnings.warn(message, UserWarning, stacklevel=3)
     target_obj = None if opts.object_id is None else find_object(room, opts.object_id)
-    instruction = read_instruction(text, similarity=xla_cache / "text-embeddings")
-    emb = embed_one(text, xla_cache / "text-embeddings", 0)  # the ADM's words: when it runs
-    text_emb = functools.cache(lambda: embed_one(text, xla_cache / "text-embeddings", t)
+    instruction = read_instruction(text, similarity=(texts := xla_cache / "text-embeddings"))
+    emb = embed_one(text, texts, 0)  # the ADM's words: when it runs
+    text_emb = functools.cache(lambda: embed_one(text, texts, t)
                                if (t := adm_text_tokens(models.adm_config)) else emb)
-    # the root key's two stage keys (region / room view, then sampling) are split inside the
-    # compiled programs, or eagerly only on the paths that need the first: an eager split is
-    # an XLA compilation in every fresh process (~0.1 s)
-    root = seed_key_data(opts.seed)  # jax.random.key(seed)'s data, made on the host
+    # the root key's stage keys (region / room view, then sampling) are split in the compiled
+    # programs, or eagerly on the paths that need the first (an XLA compilation, ~0.1 s)
     stage_key = lambda i: jax.random.split(jax.random.wrap_key_data(root))[i]  # noqa: E731
     adm_w, amdm_w = opts.guidance
     adm_sampler = SamplerSpec(method="ddim", steps=opts.adm_steps, guidance=adm_w)
     amdm_sampler = SamplerSpec(method="ddim", steps=opts.steps, guidance=amdm_w,
                                consistency=opts.consistency)
-    aot_dir = xla_cache / "programs" if opts.aot else None
-    versions = (jax.__version__, __version__)
     spec, k = models.spec, opts.samples
     lap("load")
 

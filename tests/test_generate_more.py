@@ -132,6 +132,29 @@ def test_exported_programs_are_reused_only_for_the_same_code_and_shapes(tmp_path
     assert len(calls) == 3 and len(list(tmp_path.glob("f-*.jaxexport"))) == 3
 
 
+def test_a_prefetched_program_is_the_one_called(tmp_path):
+    """prefetch loads a kept program in the background (only one already on disk), and the
+    next cached_program / cached_call for the same program and shapes takes it."""
+    import jaxmotion.compiled as C
+
+    x = np.arange(3, dtype=np.float32)
+    specs = C.specs_of((x,))
+    assert not C.prefetch(tmp_path, "p", "v1", specs)  # nothing kept yet: traced on call
+    np.testing.assert_array_equal(C.cached_call(tmp_path, "p", "v1", lambda: lambda a: a + 1,
+                                                (x,)), x + 1)
+    assert C.prefetch(tmp_path, "p", "v1", specs) and len(C.prefetched()) == 1
+    assert not C.prefetch(tmp_path, "p", "v1", specs)  # already on its way
+    unused = lambda: pytest.fail("a prefetched program is not traced again")
+    np.testing.assert_array_equal(C.cached_call(tmp_path, "p", "v1", unused, (x,)), x + 1)
+    assert C.prefetched() == ()
+    # other shapes: another program, and the prefetched one stays until asked for
+    assert C.prefetch(tmp_path, "p", "v1", specs)
+    C.cached_call(tmp_path, "p", "v1", lambda: lambda a: a + 1, (x[:2],))
+    assert len(C.prefetched()) == 1
+    C.cached_program(tmp_path, "p", "v1", unused, specs)
+    assert C.prefetched() == ()
+
+
 def test_cached_programs_take_large_constants_as_arguments(tmp_path):
     """Weights a program closes over (≥ LIFT_BYTES) leave it as arguments kept in an ``.npz``
     beside it; the numbers are those of the program with them inside, cached or not."""

@@ -368,6 +368,25 @@ def test_generate_with_the_object_centric_pipeline(runs, tmp_path):
         generate("demo", "sit on the chair", pipeline="objects")
 
 
+def test_generate_loads_the_kept_sampler_while_it_grounds(runs, tmp_path, monkeypatch):
+    """A repeated generate starts loading the object-centric program it kept on disk before
+    the target is found (the program's shapes are the options'), and the sampling takes that
+    program: nothing prefetched is left over, and the motions are those of the first run."""
+    import jaxmotion.compiled as C
+    from jaxmotion import generate
+
+    monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "cache"))
+    started, real = [], C.prefetch
+    monkeypatch.setattr(C, "prefetch", lambda *a: started.append(real(*a)) or started[-1])
+    files = (str(runs["trajectory"][1].workdir), str(runs["completion"][1].workdir))
+    kw = {"pipeline": "object-centric", "object_checkpoints": files, "steps": 2,
+          "motion_candidates": 1, "fit": False}
+    first = generate("demo", "sit on the chair next to the table", **kw)
+    again = generate("demo", "sit on the chair next to the table", **kw)
+    assert started == [False, True] and C.prefetched() == ()
+    np.testing.assert_array_equal(again.joints, first.joints)
+
+
 def test_eval_scores_an_object_centric_row(data, runs):
     from jaxmotion.eval.runner import evaluate, parse_model
 

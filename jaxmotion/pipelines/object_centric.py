@@ -362,29 +362,64 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     """
     import numpy as np
 
-    from jaxmotion.compiled import cached_call, digest
-    from jaxmotion.data.crop import crop_spec_from_config, generate_crop
+    from jaxmotion.compiled import cached_call
+    from jaxmotion.data.crop import generate_crop
     from jaxmotion.errors import GenerateError
-    from jaxmotion.models.weights import read_config
     from jaxmotion.text.condition import pooled_text
 
-    run_cfg = read_config(files[1])
-    spec, frames = crop_spec_from_config(run_cfg), int(run_cfg["max_frames"])
+    spec, frames, fingerprint, build = _sampler_program(opts, files, versions)
     pick, pts, shift, rot = generate_crop(room.xyz, centre, spec, opts.seed)
     on_target = room.instance[pick] == chosen
     if not on_target.any():
         raise GenerateError(f"object {chosen} has no point in the {spec.size} m square the "
                             "object-centric models see; is it an object of the room?")
-    k = opts.samples
-    tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))
     normals = (np.asarray(room.normal[pick], np.float32) @ rot.T).astype(np.float32)
     avoid = furniture_mask(pts, on_target, target_too=keeps_out_of_target(action))
-    betas = np.zeros((k, 10), np.float32)
-    args = (np.asarray(root), tile(pts), tile(normals), tile(on_target),
-            tile(np.asarray(pooled_text(text_emb), np.float32)[0]), betas,
-            np.ones((k, frames), bool), np.full(k, anchor_first),
-            np.full(k, action_index(action), np.int32), tile(avoid),
-            np.asarray(rot, np.float32), np.asarray(shift, np.float32))
+    args = _sampler_arguments(opts.samples, frames, root, pts, normals, on_target,
+                              np.asarray(pooled_text(text_emb), np.float32)[0], anchor_first,
+                              action, avoid, rot, shift)
+    res = jax.device_get(cached_call(aot_dir, "sample-object-centric", fingerprint, build, args))
+    joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
+    smplx = {n: np.asarray(res[n], np.float32) for n in ("global_orient", "body_pose", "transl")}
+    smplx["betas"] = args[5]
+    return joints, (pick, rot, shift), smplx
+
+
+def prefetch_sampler(opts, files, root, aot_dir, versions) -> bool:
+    """Start loading :func:`sample_in_room`'s compiled program in the background
+    (:func:`jaxmotion.compiled.prefetch`), before the target is found: the program's shapes
+    depend on the options and the models only. Returns whether it started (the program is
+    on disk)."""
+    import numpy as np
+
+    from jaxmotion.compiled import prefetch, specs_of
+
+    if aot_dir is None:
+        return False
+    spec, frames, fingerprint, _ = _sampler_program(opts, files, versions)
+    xyz = np.zeros((spec.num_points, 3), np.float32)
+    flags = np.zeros(spec.num_points, bool)
+    text = np.zeros(int(_denoiser_config(files[1])["text_dim"]), np.float32)
+    args = _sampler_arguments(opts.samples, frames, root, xyz, xyz, flags, text, False, None,
+                              flags, np.eye(3, dtype=np.float32), np.zeros(3, np.float32))
+    return prefetch(aot_dir, "sample-object-centric", fingerprint, specs_of(args))
+
+
+def _denoiser_config(path) -> dict:
+    from jaxmotion.models.weights import read_config
+
+    return read_config(path)["model"]
+
+
+def _sampler_program(opts, files, versions):
+    """``(crop spec, frames, fingerprint, build)`` of :func:`sample_in_room`'s compiled program
+    for ``opts`` and the weights ``files``."""
+    from jaxmotion.compiled import digest
+    from jaxmotion.data.crop import crop_spec_from_config
+    from jaxmotion.models.weights import read_config
+
+    run_cfg = read_config(files[1])
+    spec, frames = crop_spec_from_config(run_cfg), int(run_cfg["max_frames"])
     stage = SamplerSpec("ddim", opts.steps, guidance=opts.guidance[1])
     n_mot = opts.motion_candidates
 
@@ -405,10 +440,17 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
 
         return run
 
-    res = jax.device_get(cached_call(aot_dir, "sample-object-centric",
-                                     digest(versions, stage, n_mot, Path(files[0]),
-                                            Path(files[1])), build, args))
-    joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
-    smplx = {n: np.asarray(res[n], np.float32) for n in ("global_orient", "body_pose", "transl")}
-    smplx["betas"] = betas
-    return joints, (pick, rot, shift), smplx
+    fingerprint = digest(versions, stage, n_mot, Path(files[0]), Path(files[1]))
+    return spec, frames, fingerprint, build
+
+
+def _sampler_arguments(k: int, frames: int, root, pts, normals, on_target, text, anchor_first,
+                       action, avoid, rot, shift):
+    """The arguments of :func:`_sampler_program`'s program for K samples of one crop."""
+    import numpy as np
+
+    tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))
+    return (np.asarray(root), tile(pts), tile(normals), tile(on_target), tile(text),
+            np.zeros((k, 10), np.float32), np.ones((k, frames), bool), np.full(k, anchor_first),
+            np.full(k, action_index(action), np.int32), tile(avoid),
+            np.asarray(rot, np.float32), np.asarray(shift, np.float32))

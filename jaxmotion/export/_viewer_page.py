@@ -21,8 +21,8 @@ base64 arrays and draws, with no library and no network access:
   the skeleton; the pelvis path and the planned walking paths;
 - labels over the room: the target's and the story's objects ("chair 4 · target",
   "stool 7 · step 2"), and under the pointer the object there with its id and category
-  (its box outlined); labels never cover each other, a panel or a body (a label moves above the bodies
-  or is left out);
+  (its box outlined); labels never cover each other, a panel or a body (a label goes above its object,
+  else under it, else above the bodies, else is left out);
 - the caption, the target, a story's steps (the current one marked; a click jumps to
   it) and the help in a panel at the top left, the timeline and switches in a bar at the
   bottom, both on opaque backgrounds that nothing is drawn over.
@@ -411,7 +411,8 @@ window.jaxmotionErrors = [];
     el.textContent = objectName(i) + " · " + t.join(", ");
     labelLayer.appendChild(el);
     const o = D.objects[i];
-    labels.push({ el, object: i, at: [0.5 * (o.lo[0] + o.hi[0]), 0.5 * (o.lo[1] + o.hi[1]), o.hi[2] + 0.15] });
+    const cx = 0.5 * (o.lo[0] + o.hi[0]), cy = 0.5 * (o.lo[1] + o.hi[1]);
+    labels.push({ el, object: i, at: [cx, cy, o.hi[2] + 0.15], base: [cx, cy, o.lo[2]] });
   });
 
   // ---- camera: orbit about a target in a z-up world
@@ -598,9 +599,13 @@ window.jaxmotionErrors = [];
     const free = (r) => placed.concat(body ? [body] : []).every((p) =>
       r.left >= p.right || r.right <= p.left || r.top >= p.bottom || r.bottom <= p.top);
     for (const l of labels) {
-      const q = project(mvp, l.at), w = l.el.offsetWidth || 0, h = l.el.offsetHeight || 0;
-      const spots = q ? [q[1], body ? body.top - 4 : q[1]] : [];
-      const r = spots.map((y) => ({ left: q[0] - w / 2, right: q[0] + w / 2, top: y - h, bottom: y }))
+      const q = project(mvp, l.at), base = project(mvp, l.base);
+      const w = l.el.offsetWidth || 0, h = l.el.offsetHeight || 0;
+      const spots = [];  // above the object, under it, above the bodies
+      if (q) spots.push([q[0], q[1]]);
+      if (base) spots.push([base[0], base[1] + 4 + h]);
+      if (q && body) spots.push([q[0], body.top - 4]);
+      const r = spots.map(([x, y]) => ({ left: x - w / 2, right: x + w / 2, top: y - h, bottom: y }))
         .find(free);
       l.el.style.display = r ? "block" : "none";
       if (!r) continue;

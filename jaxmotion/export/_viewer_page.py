@@ -12,8 +12,8 @@ base64 arrays and draws, with no library and no network access:
   highlighted object's points (the current step's object in a story, else the target)
   tinted amber; a *cutaway* (on by default): the points above the motion + 0.5 m and the
   points that are not on an object, above 12 cm and more than 0.6 m on the camera's side
-  of the bodies, and every object whose box centre lies there (never the highlighted
-  object) are left out, so walls, ceiling and furniture between the camera and the
+  of the bodies, and every object whose box centre lies there (never the target nor a
+  step's object) are left out, so walls, ceiling and furniture between the camera and the
   bodies hide nothing;
 - per sample, the skinned body: linear blend skinning of the rest mesh in the vertex
   shader (4 joints a vertex, 3 × 4 joint maps as uniforms), lit by a key light and a
@@ -475,7 +475,7 @@ window.jaxmotionErrors = [];
     for (let i = 0; i < M; i++) {
       const o = D.objects[i];
       const cx = 0.5 * (o.lo[0] + o.hi[0]), cy = 0.5 * (o.lo[1] + o.hi[1]);
-      objectState[4 * (i + 1)] = on && i !== keep && (cx * d[0] + cy * d[1] > cut[2] || o.lo[2] > CUT_TOP) ? 255 : 0;
+      objectState[4 * (i + 1)] = on && !tags[i].length && i !== keep && (cx * d[0] + cy * d[1] > cut[2] || o.lo[2] > CUT_TOP) ? 255 : 0;
       objectState[4 * (i + 1) + 1] = i === keep && !heatShown ? 255 : 0;
     }
     gl.bindTexture(gl.TEXTURE_2D, objectTex);
@@ -600,6 +600,7 @@ window.jaxmotionErrors = [];
       r.left >= p.right || r.right <= p.left || r.top >= p.bottom || r.bottom <= p.top);
     for (const l of labels) {
       const q = project(mvp, l.at), base = project(mvp, l.base);
+      l.el.style.display = "block";  // measured as shown
       const w = l.el.offsetWidth || 0, h = l.el.offsetHeight || 0;
       const spots = [];  // above the object, under it, above the bodies
       if (q) spots.push([q[0], q[1]]);

@@ -25,8 +25,8 @@ id="jm-data">`` element, arrays as base64 of little-endian binary, each as
   and ``paths`` (planned ground paths).
 
 Size: the mannequin (24k vertices) costs about 0.9 MB once and 0.2 MB per sample at
-T = 120; 60k scene points about 0.85 MB, a one-channel affordance map 0.08 MB: about
-2.1 MB for the demo room with one sample. Per-frame vertices, even decimated to 2,200
+T = 120; 60k scene points about 0.8 MB, a one-channel affordance map 0.08 MB: 2.0 MB
+for the demo room with one sample, 2.8 MB with four. Per-frame vertices, even decimated to 2,200
 clusters, cost 2.1 MB per sample at T = 120.
 
 Controls: see :mod:`jaxmotion.export._viewer_page`.

@@ -730,8 +730,8 @@ _BACKGROUND = np.array([30, 33, 40])  # the page's clear colour
 
 
 def _chromium(tmp_path, url: str, name: str, size=(800, 600)):
-    """Headless Chromium with software WebGL (SwiftShader): the page's ``<html>`` tag after its
-    first draws and a screenshot ``[H, W, 3]`` int."""
+    """Headless Chromium with software WebGL (SwiftShader): the page's DOM after its first
+    draws and a screenshot ``[H, W, 3]`` int."""
     from PIL import Image
 
     png = tmp_path / f"{name}.png"
@@ -742,8 +742,7 @@ def _chromium(tmp_path, url: str, name: str, size=(800, 600)):
          "--virtual-time-budget=10000", f"--screenshot={png}", "--dump-dom", url],
         check=False, capture_output=True, text=True, timeout=120)
     assert run.returncode == 0 and png.is_file(), run.stderr[-2000:]
-    html_tag = re.search(r"<html[^>]*>", run.stdout).group(0)
-    return html_tag, np.asarray(Image.open(png).convert("RGB"), np.int64)
+    return run.stdout, np.asarray(Image.open(png).convert("RGB"), np.int64)
 
 
 @pytest.mark.skipif(not Path(_CHROMIUM).is_file(),
@@ -769,8 +768,15 @@ def test_viewer_draws_the_body_in_headless_chromium(tmp_path):
         target_id=4, affordance=np.linspace(0, 1, scene.num_points))
     with_body, shot = _chromium(tmp_path, page.as_uri() + "#frame=2", "body")
     without_body, bare = _chromium(tmp_path, page.as_uri() + "#frame=2&body=0", "bare")
-    for tag in (with_body, without_body):  # drawn, and no error nor console.error
+    for dom in (with_body, without_body):  # drawn, and no error nor console.error
+        tag = re.search(r"<html[^>]*>", dom).group(0)
         assert 'data-frame="2"' in tag and "data-errors" not in tag, tag
+        # the target's label is shown
+        assert re.search(r'class="label target" style="display: block;[^"]*">chair 4 · target<',
+                         dom), re.findall(r'<div class="label[^<]*<', dom)
+    # the target (chair 4) is tinted amber
+    amber = (bare[..., 0] > 190) & (bare[..., 1] > 100) & (bare[..., 1] < 190) & (bare[..., 2] < 90)
+    assert amber.sum() > 2000, amber.sum()  # about 5,000 here; a few hundred without the tint
     # WebGL drew the room: much of the canvas above the bar is not the clear colour
     canvas = np.abs(bare[100:540] - _BACKGROUND).sum(-1) > 30
     assert canvas.mean() > 0.3, canvas.mean()

@@ -738,6 +738,7 @@ def _chromium(tmp_path, url: str, name: str, size=(800, 600)):
     run = subprocess.run(
         [_CHROMIUM, "--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
          "--enable-unsafe-swiftshader", "--no-first-run", "--hide-scrollbars",
+         "--disable-dev-shm-usage",
          f"--user-data-dir={tmp_path / 'profile'}", f"--window-size={size[0]},{size[1]}",
          "--virtual-time-budget=10000", f"--screenshot={png}", "--dump-dom", url],
         check=False, capture_output=True, text=True, timeout=120)

@@ -20,14 +20,17 @@ id="jm-data">`` element, arrays as base64 of little-endian binary, each as
   (/ 127); shared ``faces [F, 3]``, the 4 strongest skinning ``joints [V, 4]`` and
   ``weights [V, 4]`` uint8 (/ 255); ``bones [K, T, J, 12]`` uint16 quantised, the row-major
   3 × 4 linear blend skinning map of every joint (:func:`jaxmotion.render.body.skinning`);
-  ``shape_of [K]`` and the samples' ``colours``.
+  ``shape_of [K]`` and the samples' ``colours``. The mannequin (at most 4 joints a vertex,
+  no pose correctives) is posed as ``body_forward`` poses it, to within 1 mm; for a user's SMPL-X model, as in ``motion.glb``, the
+  pose-corrective blend shapes are dropped and the weights beyond the 4 strongest folded
+  into them.
 - ``segments`` (a story's steps: ``first``, ``last``, ``label``, ``object`` index or −1)
   and ``paths`` (planned ground paths).
 
 Size: the mannequin (24k vertices) costs about 0.9 MB once and 0.2 MB per sample at
 T = 120; 60k scene points about 0.8 MB, a one-channel affordance map 0.08 MB: 2.0 MB
-for the demo room with one sample, 2.8 MB with four. Per-frame vertices, even decimated to 2,200
-clusters, cost 2.1 MB per sample at T = 120.
+for the demo room with one sample, 2.8 MB with four. Per-frame vertices, even decimated
+to 2,200 clusters, would cost 2.1 MB per sample at T = 120.
 
 Controls: see :mod:`jaxmotion.export._viewer_page`.
 """

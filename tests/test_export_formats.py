@@ -629,7 +629,7 @@ def test_viewer_body_is_the_skinned_mannequin(tmp_path):
     blended = np.einsum("vi,ktviab->ktvab", w, maps) / w.sum(1)[:, None, None]
     posed = np.einsum("ktvab,vb->ktva", blended[..., :3], rest) + blended[..., 3]
     err = np.linalg.norm(posed - vertices, axis=-1)
-    assert err.max() < 5e-3 and err.mean() < 1e-3, (err.max(), err.mean())
+    assert err.max() < 1e-3, (err.max(), err.mean())  # 0.2 mm: the quantisation
     with pytest.raises(ValueError, match="samples and frames"):
         write_viewer_html(tmp_path / "x.html", scene_xyz=vertices[0, 0], scene_rgb=None,
                           joints=np.zeros((1, 22, 3)), fps=30,

@@ -504,7 +504,7 @@ def test_viewer_page_is_self_contained_and_embeds_the_data(tmp_path):
     assert {"html", "canvas", "script"} <= set(parser.tags)
     assert not [v for k, v in parser.attrs if k in ("src", "href")]
     assert "http://" not in page and "https://" not in page
-    assert page.count("</script>") == 2  # the text cannot close the data element
+    assert page.count("</script>") == 3  # the text cannot close the data element
     data = _payload(page)
     assert data["text"] == text and data["num_samples"] == 2 and data["num_frames"] == 5
     step = np.asarray(data["scene"]["xyz"]["step"])
@@ -521,23 +521,64 @@ def test_viewer_page_is_self_contained_and_embeds_the_data(tmp_path):
         "l_wrist",
         "r_wrist",
     ]
-    assert data["segments"] == [] and data["paths"] == []
+    assert data["segments"] == [] and data["paths"] == [] and data["body"] is None
+    assert data["objects"] == [] and data["target"] == -1
+    assert not _decode(data["scene"]["instance"]).any()
+
+
+def _objects_scene(seed, n):
+    """Points with two boxes: object 7 (a chair) and object 3 (a table); the rest on none."""
+    xyz, rgb = _scene(seed, n)
+    instance = np.full(n, -1)
+    instance[: n // 4], instance[n // 4 : n // 2] = 7, 3
+    xyz[: n // 4] = xyz[: n // 4] * [0.1, 0.1, 0.36] + [1.0, 1.0, 0.0]
+    xyz[n // 4 : n // 2] = xyz[n // 4 : n // 2] * [0.2, 0.2, 0.3] + [-1.5, -1.5, 0.0]
+    objects = [{"id": 3, "category": "table", "bbox_min": [-1.9, -1.9, 0.0],
+                "bbox_max": [-1.1, -1.1, 0.75]},
+               {"id": 7, "category": "chair", "bbox_min": [0.8, 0.8, 0.0],
+                "bbox_max": [1.2, 1.2, 0.9]}]
+    return xyz, rgb, instance, objects
+
+
+def test_viewer_embeds_objects_target_and_lit_colours(tmp_path):
+    xyz, rgb, instance, objects = _objects_scene(21, 400)
+    normal = np.zeros_like(xyz)
+    normal[:100] = [0.0, 0.0, 1.0]
+    page = write_viewer_html(tmp_path / "o.html", scene_xyz=xyz, scene_rgb=rgb,
+                             joints=_motion_joints(22, 1, 3), fps=30, scene_normal=normal,
+                             scene_instance=instance, objects=objects, target_id=7,
+                             max_points=300).read_text()
+    data = _payload(page)
+    assert [(o["id"], o["category"]) for o in data["objects"]] == [(3, "table"), (7, "chair")]
+    assert data["objects"][1]["lo"] == [0.8, 0.8, 0.0] and data["target"] == 1
+    keep = np.sort(np.random.default_rng(0).choice(400, 300, replace=False))
+    want = np.select([instance[keep] == 3, instance[keep] == 7], [1, 2], 0)
+    np.testing.assert_array_equal(_decode(data["scene"]["instance"]), want)
+    # points with a normal are lit by the fixed light, the others keep their colour
+    shade = 0.55 + 0.45 * abs(np.array([0.35, -0.45, 0.82]) @ [0, 0, 1]) / np.linalg.norm(
+        [0.35, -0.45, 0.82])
+    lit = np.where((keep < 100)[:, None], rgb[keep] * shade, rgb[keep])
+    np.testing.assert_allclose(_decode(data["scene"]["rgb"]) / 255, lit, atol=0.5 / 255 + 1e-9)
+    with pytest.raises(ValueError, match="target_id 5 is not in objects"):
+        write_viewer_html(tmp_path / "x.html", scene_xyz=xyz, scene_rgb=rgb,
+                          joints=_motion_joints(22, 1, 3), fps=30, scene_instance=instance,
+                          objects=objects, target_id=5)
 
 
 def test_viewer_carries_a_storys_steps_and_paths(tmp_path):
-    xyz, rgb = _scene(19, 300)
+    xyz, rgb, instance, objects = _objects_scene(19, 300)
     joints = _motion_joints(20, 1, 6)
-    steps = [{"action": "stand_up", "object": 4, "first": 0, "last": 2},
-             {"action": "walk", "object": 9, "first": 3, "last": 5, "label": "walk · fridge 9"}]
+    steps = [{"action": "stand_up", "object": 7, "first": 0, "last": 2},
+             {"action": "walk", "object": 3, "first": 3, "last": 5, "label": "walk · table 3"}]
     path = [[0.0, 0.0], [1.0, 0.5], [2.0, 0.5]]
     page = write_viewer_html(tmp_path / "s.html", scene_xyz=xyz, scene_rgb=rgb, joints=joints,
-                             fps=30, segments=steps, paths=[path]).read_text()
+                             fps=30, segments=steps, paths=[path], scene_instance=instance,
+                             objects=objects).read_text()
     data = _payload(page)
-    assert data["segments"] == [{"first": 0, "last": 2, "label": "stand up · object 4"},
-                                {"first": 3, "last": 5, "label": "walk · fridge 9"}]
+    assert data["segments"] == [{"first": 0, "last": 2, "label": "stand up · object 7", "object": 1},
+                                {"first": 3, "last": 5, "label": "walk · table 3", "object": 0}]
     np.testing.assert_allclose(np.reshape(data["paths"][0], (3, 3)),
                                np.c_[path, np.full(3, 0.02)])
-    assert "stepOf(frame)" in page
     with pytest.raises(ValueError, match="outside the motion's 6 frames"):
         write_viewer_html(tmp_path / "x.html", scene_xyz=xyz, scene_rgb=rgb, joints=joints,
                           fps=30, segments=[{**steps[0], "last": 6}])
@@ -546,81 +587,92 @@ def test_viewer_carries_a_storys_steps_and_paths(tmp_path):
                           fps=30, paths=[[[0.0, 0.0]]])
 
 
-def _body_page(tmp_path, k=1, t=3):
+def _body_page(tmp_path, k=1, t=3, n=2000):
     go, bp, tr = _params(17, t, k=k, scale=0.2)
     model = load_mannequin()
     out = _forward(model, go, bp, tr, normals=False)
-    xyz, rgb = _scene(18, 2000)
-    vertices = np.asarray(out.vertices, np.float64)
+    xyz, rgb, instance, objects = _objects_scene(18, n)
     path = write_viewer_html(
         tmp_path / "b.html",
         scene_xyz=xyz,
         scene_rgb=rgb,
-        joints=np.asarray(out.joints),
+        joints=np.asarray(out.joints)[..., :22, :],
         fps=30,
         text="walk",
-        vertices=vertices,
-        faces=np.asarray(model.faces),
-        affordance=np.linspace(0, 1, 2000),
+        smplx={"global_orient": go, "body_pose": bp, "transl": tr},
+        affordance=np.linspace(0, 1, n),
+        scene_instance=instance,
+        objects=objects,
+        target_id=7,
         max_points=500,
     )
-    return path, vertices
+    return path, np.asarray(out.vertices, np.float64), model
 
 
-def test_viewer_body_is_decimated_and_scene_subsampled(tmp_path):
-    path, vertices = _body_page(tmp_path, k=2)
+def test_viewer_body_is_the_skinned_mannequin(tmp_path):
+    path, vertices, model = _body_page(tmp_path, k=2)
     data = _payload(path.read_text())
     assert data["scene"]["xyz"]["shape"] == [500, 3]
     assert data["affordance"]["channels"] == ["map"]
-    pos = _decode(data["body"]["positions"])
-    faces = _decode(data["body"]["faces"]).astype(int)
-    assert pos.shape[:2] == (2, 3) and 500 < pos.shape[2] < vertices.shape[2] // 4
-    assert faces.min() == 0 and faces.max() == pos.shape[2] - 1
-    # every cluster sits on the body: near a vertex of the same sample and frame
-    from scipy.spatial import cKDTree
-
-    for s in range(2):
-        dist, _ = cKDTree(vertices[s, 1]).query(pos[s, 1])
-        assert dist.max() < 0.04
-    with pytest.raises(ValueError, match="vertices and faces"):
-        write_viewer_html(
-            tmp_path / "x.html",
-            scene_xyz=vertices[0, 0],
-            scene_rgb=None,
-            joints=np.zeros((1, 22, 3)),
-            fps=30,
-            vertices=vertices,
-        )
+    body = data["body"]
+    np.testing.assert_array_equal(_decode(body["faces"]), np.asarray(model.faces))
+    assert body["shape_of"] == [0, 0] and len(body["shapes"]) == 1  # one shape: the neutral body
+    rest = _decode(body["shapes"][0]["positions"])
+    normals = _decode(body["shapes"][0]["normals"]) / 127
+    assert np.allclose(np.linalg.norm(normals, axis=1), 1, atol=0.02)
+    idx = _decode(body["joints"]).astype(int)
+    w = _decode(body["weights"]) / 255
+    bones = _decode(body["bones"])
+    assert bones.shape == (2, 3, model.num_joints, 12) and idx.max() < model.num_joints
+    # linear blend skinning of the page's arrays gives the posed mannequin (body_forward)
+    maps = bones.reshape(2, 3, -1, 3, 4)[:, :, idx]  # [K, T, V, 4, 3, 4]
+    blended = np.einsum("vi,ktviab->ktvab", w, maps) / w.sum(1)[:, None, None]
+    posed = np.einsum("ktvab,vb->ktva", blended[..., :3], rest) + blended[..., 3]
+    err = np.linalg.norm(posed - vertices, axis=-1)
+    assert err.max() < 1e-3, (err.max(), err.mean())  # 0.2 mm: the quantisation
+    with pytest.raises(ValueError, match="samples and frames"):
+        write_viewer_html(tmp_path / "x.html", scene_xyz=vertices[0, 0], scene_rgb=None,
+                          joints=np.zeros((1, 22, 3)), fps=30,
+                          smplx={"global_orient": np.zeros((2, 3)),
+                                 "body_pose": np.zeros((2, 21, 3)), "transl": np.zeros((2, 3))})
     assert not (tmp_path / "x.html").exists()
 
 
 # JS harness: runs the page's script in Node with a stub DOM and a stub WebGL2 context,
-# fires its controls, and fails on any exception (syntax, reference or type errors).
+# fires its controls, sweeps the pointer over the canvas (the hover labels it shows), and
+# fails on any exception (syntax, reference or type errors).
 _NODE_HARNESS = r"""
 const fs = require("fs");
 const page = fs.readFileSync(process.argv[2], "utf8");
 const blocks = [...page.matchAll(/<script([^>]*)>([\s\S]*?)<\/script>/g)];
 const dataText = blocks.find((b) => b[1].includes("jm-data"))[2];
-const code = blocks.find((b) => !b[1].includes("application/json"))[2];
+const code = blocks[blocks.length - 1][2];
 const calls = {};
 const gl = new Proxy({}, { get(_, prop) {
-  if (typeof prop === "string" && /^[A-Z0-9_]+$/.test(prop)) return 1;
+  if (typeof prop === "string" && /^[A-Z0-9_]+$/.test(prop)) return prop === "NO_ERROR" ? 0 : 1;
   return (...args) => { calls[prop] = (calls[prop] || 0) + 1;
+    if (prop === "getError") return 0;
     return prop.startsWith("get") && prop.endsWith("Parameter") ? true : {}; };
 } });
 const listeners = {};
 function element(id) {
   return { id, style: {}, textContent: "", innerHTML: "", value: "0", checked: true,
-    clientWidth: 640, clientHeight: 480, width: 0, height: 0, max: "0",
+    clientWidth: 640, clientHeight: 480, width: 0, height: 0, max: "0", offsetWidth: 60,
+    offsetHeight: 16, className: "",
     addEventListener(type, fn) { listeners[id + ":" + type] = fn; },
     appendChild() {}, setPointerCapture() {},
+    getBoundingClientRect() { return id === "info" ? { left: 0, right: 200, top: 0, bottom: 60 }
+      : { left: 0, right: 640, top: 450, bottom: 480 }; },
     getContext(kind) { return kind === "webgl2" ? gl : null; } };
 }
 const elements = {};
 globalThis.document = {
   getElementById(id) { return id === "jm-data" ? { textContent: dataText } : (elements[id] ||= element(id)); },
+  querySelector(sel) { return element(sel); },
   createElement() { return element("new"); }, createTextNode() { return {}; },
+  documentElement: { setAttribute() {} },
 };
+globalThis.location = { hash: "" };
 let queue = [];
 globalThis.window = { devicePixelRatio: 1, addEventListener(type, fn) { listeners["window:" + type] = fn; } };
 globalThis.requestAnimationFrame = (cb) => queue.push(cb);
@@ -634,6 +686,13 @@ flush(3);
 const ev = { clientX: 10, clientY: 10, button: 0, shiftKey: false, pointerId: 1, deltaY: 100,
   preventDefault() {} };
 if (listeners["colouring:change"]) { elements.colouring.value = "max"; listeners["colouring:change"](); }
+const tips = new Set();
+for (let x = 0; x < 640; x += 16) for (let y = 0; y < 480; y += 16) {
+  listeners["view:pointermove"]({ offsetX: x, offsetY: y });
+  flush(1);
+  if (elements.tip.style.display === "block") tips.add(elements.tip.textContent);
+}
+listeners["view:pointerleave"]();
 listeners["view:pointerdown"](ev);
 listeners["view:pointermove"](Object.assign({}, ev, { clientX: 30 }));
 listeners["view:pointerup"](ev);
@@ -646,13 +705,13 @@ flush(5);
 elements.time.value = "1";
 listeners["time:input"]();
 flush(3);
-console.log(JSON.stringify({ viewer: window.jaxmotionViewer, calls }));
+console.log(JSON.stringify({ viewer: window.jaxmotionViewer, calls, tips: [...tips].sort() }));
 """
 
 
 @pytest.mark.skipif(shutil.which("node") is None, reason="Node.js not installed")
 def test_viewer_script_runs_in_node_with_stub_webgl(tmp_path):
-    path, _ = _body_page(tmp_path, k=1, t=3)
+    path, _, _ = _body_page(tmp_path, k=1, t=3, n=300)
     harness = tmp_path / "harness.js"
     harness.write_text(_NODE_HARNESS)
     run = subprocess.run(
@@ -660,36 +719,74 @@ def test_viewer_script_runs_in_node_with_stub_webgl(tmp_path):
     )
     assert run.returncode == 0, run.stderr
     result = json.loads(run.stdout)
-    assert result["viewer"] == {"ready": True, "frame": 1, "frames": 3, "samples": 1}
+    assert result["viewer"] == {"ready": True, "frame": 1, "frames": 3, "samples": 1,
+                                "body": True}
     assert result["calls"]["drawElements"] >= 1 and result["calls"]["drawArrays"] >= 4
+    assert result["tips"] == ["chair 7 · target", "table 3"]
 
 
-_SOFTWARE_GL = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+_CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+_BACKGROUND = np.array([30, 33, 40])  # the page's clear colour
 
 
-def test_viewer_renders_in_headless_chromium(tmp_path):
-    sync_api = pytest.importorskip("playwright.sync_api")
-    path, _ = _body_page(tmp_path, k=2, t=3)
-    with sync_api.sync_playwright() as p:
-        browser, failures = None, []
-        # playwright's own chromium build, else a system one (Debian's package: /usr/bin/chromium)
-        for executable in (None, shutil.which("chromium")):
-            try:
-                browser = p.chromium.launch(executable_path=executable, args=_SOFTWARE_GL)
-                break
-            except sync_api.Error as err:
-                failures.append(str(err).splitlines()[0])
-        if browser is None:
-            pytest.skip(f"no chromium that playwright can launch: {failures}")
-        page = browser.new_page()
-        errors = []
-        page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(path.as_uri())
-        page.wait_for_function(
-            "window.jaxmotionViewer && window.jaxmotionViewer.ready", timeout=20_000
-        )
-        page.click("#play")
-        page.wait_for_timeout(300)
-        browser.close()
-    assert not errors
+def _chromium(tmp_path, url: str, name: str, size=(800, 600)):
+    """Headless Chromium with software WebGL (SwiftShader): the page's DOM after its first
+    draws and a screenshot ``[H, W, 3]`` int."""
+    from PIL import Image
+
+    png = tmp_path / f"{name}.png"
+    run = subprocess.run(
+        [_CHROMIUM, "--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
+         "--enable-unsafe-swiftshader", "--no-first-run", "--hide-scrollbars",
+         "--disable-dev-shm-usage",
+         f"--user-data-dir={tmp_path / 'profile'}", f"--window-size={size[0]},{size[1]}",
+         "--virtual-time-budget=10000", f"--screenshot={png}", "--dump-dom", url],
+        check=False, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0 and png.is_file(), run.stderr[-2000:]
+    return run.stdout, np.asarray(Image.open(png).convert("RGB"), np.int64)
+
+
+@pytest.mark.skipif(not Path(_CHROMIUM).is_file(),
+                    reason="no Chromium (/usr/bin/chromium): .ci/run installs Debian's "
+                    "chromium package when it runs as root with apt-get")
+def test_viewer_draws_the_body_in_headless_chromium(tmp_path):
+    from jaxmotion.scene.demo import demo_scene
+
+    scene = demo_scene()
+    t = 3
+    go = np.tile([np.pi / 2, 0.0, 0.0], (1, t, 1))  # SMPL-X's y-up rest pose stood up in z-up
+    bp = np.zeros((1, t, 21, 3))
+    tr = np.zeros((1, t, 3))
+    model = load_mannequin()
+    out = _forward(model, go, bp, tr, normals=False)
+    tr += [1.0, 1.4, -float(np.asarray(out.vertices)[..., 2].min())]
+    tr[0, :, 0] += np.linspace(0.0, 0.1, t)
+    joints = np.asarray(_forward(model, go, bp, tr, normals=False).joints)[..., :22, :]
+    page = write_viewer_html(
+        tmp_path / "v.html", scene_xyz=scene.xyz, scene_rgb=scene.rgb, joints=joints, fps=30,
+        text="stand in the room", smplx={"global_orient": go, "body_pose": bp, "transl": tr},
+        scene_normal=scene.normal, scene_instance=scene.instance, objects=scene.objects,
+        target_id=4, affordance=np.linspace(0, 1, scene.num_points))
+    with_body, shot = _chromium(tmp_path, page.as_uri() + "#frame=2", "body")
+    without_body, bare = _chromium(tmp_path, page.as_uri() + "#frame=2&body=0", "bare")
+    for dom in (with_body, without_body):  # drawn, and no error nor console.error
+        tag = re.search(r"<html[^>]*>", dom).group(0)
+        assert 'data-frame="2"' in tag and "data-errors" not in tag, tag
+        # the target's label is shown
+        assert re.search(r'class="label target" style="display: block;[^"]*">chair 4 · target<',
+                         dom), re.findall(r'<div class="label[^<]*<', dom)
+    # the target (chair 4) is tinted amber
+    amber = (bare[..., 0] > 190) & (bare[..., 1] > 100) & (bare[..., 1] < 190) & (bare[..., 2] < 90)
+    assert amber.sum() > 2000, amber.sum()  # about 5,000 here; a few hundred without the tint
+    # WebGL drew the room: much of the canvas above the bar is not the clear colour
+    canvas = np.abs(bare[100:540] - _BACKGROUND).sum(-1) > 30
+    assert canvas.mean() > 0.3, canvas.mean()
+    # the body: pixels that change when it is hidden, light blue (sample 0's colour), in the
+    # middle of the picture where the camera looks
+    body = np.abs(shot - bare).sum(-1) > 60
+    rows, cols = np.nonzero(body)
+    assert body.sum() > 2000, body.sum()
+    r, g, b = shot[body].T
+    assert np.median(b - r) > 20 and np.median(g - r) > 5, (np.median(r), np.median(g),
+                                                           np.median(b))
+    assert abs(np.median(rows) - 300) < 120 and abs(np.median(cols) - 400) < 120

@@ -4,6 +4,7 @@ Uses the tiny trained runs (conftest ``tiny_runs``) so it does not depend on the
 checkpoints; ``test_shipped_default`` runs the real default when it is installed."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -188,6 +189,11 @@ def test_save_writes_every_output_that_readers_open(result, tmp_path):
     assert blue.mean() > 1e-3 and (np.abs(video[30] - video[0]).sum(-1) > 60).mean() > 1e-3
     html = files["viewer.html"].read_text()
     assert "https://" not in html and "http://" not in html
+    page = json.loads(re.search(r'id="jm-data">(.*?)</script>', html, re.DOTALL).group(1))
+    assert page["body"]["bones"]["shape"][:2] == [2, 120]  # the skinned mannequins
+    assert len(page["objects"]) == len(result.scene.objects)
+    if result.target_id is not None:
+        assert page["objects"][page["target"]]["id"] == result.target_id
     assert not [p for p in (tmp_path / "out").iterdir() if p.name.startswith(".")]
 
 

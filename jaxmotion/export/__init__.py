@@ -10,7 +10,8 @@
   bodies through :mod:`jaxmotion.render` when posed meshes are given, else skeletons);
   :func:`render_frame`: one still PNG of the skeleton at several frames.
 - :func:`write_viewer_html`: one self-contained HTML page (WebGL2, no network)
-  that plays the motion in the scene, with the affordance map as a heat layer.
+  that plays the skinned bodies in the scene: the target highlighted, hover labels
+  naming the objects, the affordance map as a heat layer, a story's path and steps.
 
 All take jaxmotion's z-up world in metres; each module docstring states its
 format's frame, units and conventions. A failed write never leaves a partial

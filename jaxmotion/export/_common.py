@@ -135,6 +135,14 @@ def face_incidence(faces: np.ndarray, num_vertices: int):
                       shape=(num_vertices, len(f)))
 
 
+def strongest_influences(weights: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``count`` largest skinning weights per vertex of ``weights [V, J]``, renormalised to
+    sum 1, and their joints: ``(joints [V, count], weights [V, count])``, strongest first."""
+    idx = np.argsort(-weights, axis=1, kind="stable")[:, :count]
+    w = np.take_along_axis(weights, idx, axis=1)
+    return idx, w / w.sum(axis=1, keepdims=True)
+
+
 def random_subset(n: int, max_count: int, seed: int) -> np.ndarray:
     """Sorted indices of at most ``max_count`` of ``n`` items, seeded (all of them if n ≤ max)."""
     if n <= max_count:

@@ -2,19 +2,35 @@
 
 ``PAGE`` has three placeholders: ``__TITLE__`` and ``__CAPTION__`` (HTML-escaped
 text) and ``__DATA__`` (the JSON payload, with every ``<`` escaped so that it
-cannot close its ``<script>`` element). The script reads the payload, decodes its
+cannot close its ``<script>`` element). A first script records every error (uncaught
+exceptions, rejected promises, ``console.error``) in ``window.jaxmotionErrors`` and the
+``data-errors`` attribute of ``<html>``. The player reads the payload, decodes its
 base64 arrays and draws, with no library and no network access:
 
-- the scene points (``gl.POINTS``, size from the point spacing and distance) in
-  their colours or as the affordance heat layer (the same colour formula as
-  ``_common.heat_colours``);
-- per sample, the decimated body mesh (flat-shaded from screen-space
-  derivatives), the pelvis path and the skeleton (lines and joint dots, drawn
-  over everything) in the sample's palette colour;
-- an orbit camera about a z-up world.
+- the scene points as round splats in their (lit) colours, or as the affordance heat
+  layer (the formula of ``_common.heat_colours``, a colour bar in the bar); the
+  highlighted object's points (the current step's object in a story, else the target)
+  tinted amber; a *cutaway* (on by default): the points above the motion + 0.5 m and the
+  points that are not on an object, above 12 cm and more than 0.6 m on the camera's side
+  of the bodies, and every object whose box centre lies there (never the target nor a
+  step's object) are left out, so walls, ceiling and furniture between the camera and the
+  bodies hide nothing;
+- per sample, the skinned body: linear blend skinning of the rest mesh in the vertex
+  shader (4 joints a vertex, 3 × 4 joint maps as uniforms), lit by a key light and a
+  head light in the sample's colour; without a body (or with the body box unticked),
+  the skeleton; the pelvis path and the planned walking paths;
+- labels over the room: the target's and the story's objects ("chair 4 · target",
+  "stool 7 · step 2"), and under the pointer the object there with its id and category
+  (its box outlined); labels never cover each other, a panel or a body (a label goes above its object,
+  else under it, else above the bodies, else is left out);
+- the caption, the target, a story's steps (the current one marked; a click jumps to
+  it) and the help in a panel at the top left, the timeline and switches in a bar at the
+  bottom, both on opaque backgrounds that nothing is drawn over.
 
-After each draw it sets ``window.jaxmotionViewer = {ready, frame, frames,
-samples}`` so that tests and scripts can tell the page is up.
+The page's URL hash sets options: ``#frame=N&body=0&cutaway=0&colour=max&play=1``.
+After each draw it sets ``window.jaxmotionViewer = {ready, frame, frames, samples,
+body}`` and the ``data-frame`` attribute of ``<html>`` so that tests and scripts can
+tell the page is up.
 """
 
 PAGE = r"""<!DOCTYPE html>
@@ -23,34 +39,70 @@ PAGE = r"""<!DOCTYPE html>
 <meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>__TITLE__</title>
+<script>
+"use strict";
+window.jaxmotionErrors = [];
+(function () {
+  function note(message) {
+    window.jaxmotionErrors.push(String(message));
+    document.documentElement.setAttribute("data-errors", window.jaxmotionErrors.join(" | "));
+  }
+  window.addEventListener("error", (ev) => note(ev.message || ev.error || "error"));
+  window.addEventListener("unhandledrejection", (ev) => note(ev.reason));
+  const original = console.error.bind(console);
+  console.error = (...args) => { note(args.join(" ")); original(...args); };
+})();
+</script>
 <style>
   html, body { margin: 0; height: 100%; overflow: hidden; background: #1e2128;
     font: 13px/1.4 system-ui, sans-serif; color: #e8e8e8; }
   #view { display: block; width: 100%; height: 100%; touch-action: none; cursor: grab; }
-  #caption { position: absolute; top: 10px; left: 12px; right: 12px; font-size: 15px;
-    text-shadow: 0 1px 2px #000; pointer-events: none; }
-  #help { position: absolute; top: 36px; left: 12px; opacity: 0.6; font-size: 11px;
-    pointer-events: none; }
-  #bar { position: absolute; left: 0; right: 0; bottom: 0; display: flex; gap: 10px;
-    align-items: center; padding: 8px 12px; background: rgba(20, 22, 28, 0.85); flex-wrap: wrap; }
+  .panel { position: absolute; z-index: 3; background: rgba(20, 22, 28, 0.92); }
+  #info { top: 0; left: 0; max-width: min(520px, 60%); padding: 8px 12px;
+    border-bottom-right-radius: 6px; }
+  #caption { font-size: 15px; }
+  #target { color: #ffb640; }
+  #steps { margin: 4px 0 0; padding-left: 20px; }
+  #steps li { cursor: pointer; opacity: 0.75; }
+  #steps li.now { opacity: 1; font-weight: 600; color: #ffb640; }
+  #info details { font-size: 11px; opacity: 0.75; margin-top: 4px; }
+  #bar { left: 0; right: 0; bottom: 0; display: flex; gap: 10px; align-items: center;
+    padding: 8px 12px; flex-wrap: wrap; }
   #bar button { width: 34px; height: 26px; }
   #time { flex: 1; min-width: 120px; }
-  #clock { font-variant-numeric: tabular-nums; min-width: 150px; white-space: nowrap; }
+  #clock { font-variant-numeric: tabular-nums; white-space: nowrap; }
+  #heat { display: none; align-items: center; gap: 4px; }
+  #heat span.bar { width: 90px; height: 10px; border-radius: 2px; }
   .swatch { display: inline-block; width: 10px; height: 10px; margin: 0 3px 0 8px;
     border-radius: 2px; }
+  #labels { position: absolute; inset: 0; z-index: 1; pointer-events: none; overflow: hidden; }
+  .label, #tip { position: absolute; padding: 1px 6px; border-radius: 3px; white-space: nowrap;
+    background: rgba(20, 22, 28, 0.85); font-size: 12px; pointer-events: none; }
+  .label.target { color: #ffb640; border: 1px solid #ffb640; }
+  #tip { z-index: 2; display: none; border: 1px solid #aaa; }
 </style>
 </head>
 <body>
 <canvas id="view"></canvas>
-<div id="caption">__CAPTION__</div>
-<div id="help">drag: rotate · right-drag or shift-drag: pan · wheel: zoom · double-click: reset
- view · space: play / pause · ← →: step</div>
-<div id="bar">
+<div id="labels"></div>
+<div id="tip"></div>
+<div id="info" class="panel">
+  <div id="caption">__CAPTION__</div>
+  <div id="target"></div>
+  <ol id="steps"></ol>
+  <details><summary>controls</summary>drag: rotate · right-drag or shift-drag: pan ·
+  wheel: zoom · double-click: reset view · space: play / pause · ← →: step · hover: the
+  object's id and category</details>
+</div>
+<div id="bar" class="panel">
   <button id="play" title="play / pause (space)">&#9654;</button>
   <input id="time" type="range" min="0" max="0" value="0" step="1">
   <span id="clock"></span>
   <label id="bodyToggle"><input id="showBody" type="checkbox" checked> body</label>
+  <label title="leave out what stands between the camera and the bodies"><input
+    id="cutaway" type="checkbox" checked> cutaway</label>
   <select id="colouring" title="colour the scene points"></select>
+  <span id="heat">0<span class="bar"></span>1</span>
   <span id="legend"></span>
 </div>
 <script type="application/json" id="jm-data">__DATA__</script>
@@ -59,7 +111,12 @@ PAGE = r"""<!DOCTYPE html>
 (function () {
   const D = JSON.parse(document.getElementById("jm-data").textContent);
   const ARRAYS = { float32: Float32Array, uint8: Uint8Array, uint16: Uint16Array,
-    uint32: Uint32Array };
+    uint32: Uint32Array, int8: Int8Array };
+  const OPTIONS = {};
+  for (const part of (location.hash || "").replace(/^#/, "").split("&")) {
+    const [key, value] = part.split("=");
+    if (key) OPTIONS[key] = value === undefined ? "1" : decodeURIComponent(value);
+  }
 
   function decode(e) {
     const bin = atob(e.b64);
@@ -74,11 +131,12 @@ PAGE = r"""<!DOCTYPE html>
 
   const K = D.num_samples, T = D.num_frames, J = D.parents.length;
   const sceneXyz = decode(D.scene.xyz), sceneRgb = decode(D.scene.rgb);
-  const N = sceneXyz.length / 3;
+  const sceneObj = decode(D.scene.instance);
+  const N = sceneXyz.length / 3, M = D.objects.length;
   const joints = decode(D.joints);
   const aff = D.affordance ? decode(D.affordance.values) : null;
-  const body = D.body ? { pos: decode(D.body.positions), faces: decode(D.body.faces),
-    count: D.body.positions.shape[2] } : null;
+  const B = D.body;
+  const bones = B ? decode(B.bones) : null, NB = B ? B.bones.shape[2] : 0;
 
   const canvas = document.getElementById("view");
   const gl = canvas.getContext("webgl2", { antialias: true });
@@ -102,57 +160,112 @@ PAGE = r"""<!DOCTYPE html>
     if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(p));
     return p;
   }
-  const flat = program(
+  function uniforms(p, names) {
+    const u = {};
+    for (const n of names) u[n] = gl.getUniformLocation(p, n);
+    return u;
+  }
+  // the cutaway, the same rule as cutPoint below
+  const points = program(
     `#version 300 es
-     in vec3 a_pos; in vec3 a_col; uniform mat4 u_mvp; uniform float u_size; out vec3 v_col;
-     void main() { gl_Position = u_mvp * vec4(a_pos, 1.0);
-       gl_PointSize = clamp(u_size / gl_Position.w, 1.0, 6.0); v_col = a_col; }`,
+     layout(location = 0) in vec3 a_pos; layout(location = 1) in vec3 a_col;
+     layout(location = 2) in float a_obj;
+     uniform mat4 u_mvp; uniform float u_size; uniform sampler2D u_objects;
+     uniform vec4 u_cut; uniform bool u_cutaway; uniform vec3 u_tint; out vec3 v_col;
+     void main() {
+       vec4 state = texelFetch(u_objects, ivec2(int(a_obj + 0.5), 0), 0);
+       bool cut = u_cutaway && (state.r > 0.5 || (a_obj < 0.5 && a_pos.z > 0.12 &&
+         (a_pos.z > u_cut.w || dot(a_pos.xy, u_cut.xy) > u_cut.z)));
+       gl_Position = cut ? vec4(2.0, 2.0, 2.0, 1.0) : u_mvp * vec4(a_pos, 1.0);
+       gl_PointSize = cut ? 0.0 : clamp(1.5 * u_size / gl_Position.w, 1.5, 12.0);
+       v_col = state.g > 0.5 ? mix(a_col, u_tint, 0.6) : a_col; }`,
     `#version 300 es
      precision mediump float; in vec3 v_col; out vec4 o;
-     void main() { o = vec4(v_col, 1.0); }`);
-  const shaded = program(
+     void main() { vec2 c = gl_PointCoord - 0.5; if (dot(c, c) > 0.25) discard;
+       o = vec4(v_col, 1.0); }`);
+  const uPoints = uniforms(points, ["u_mvp", "u_size", "u_objects", "u_cut", "u_cutaway",
+    "u_tint"]);
+  const lines = program(
     `#version 300 es
-     in vec3 a_pos; uniform mat4 u_mvp; out vec3 v_world;
-     void main() { v_world = a_pos; gl_Position = u_mvp * vec4(a_pos, 1.0); }`,
+     layout(location = 0) in vec3 a_pos; uniform mat4 u_mvp; uniform float u_size;
+     void main() { gl_Position = u_mvp * vec4(a_pos, 1.0);
+       gl_PointSize = clamp(u_size / gl_Position.w, 2.0, 8.0); }`,
     `#version 300 es
-     precision highp float; in vec3 v_world; uniform vec3 u_col; out vec4 o;
-     void main() { vec3 n = normalize(cross(dFdx(v_world), dFdy(v_world)));
-       float l = 0.35 + 0.65 * abs(dot(n, normalize(vec3(0.3, -0.5, 0.8))));
-       o = vec4(u_col * l, 1.0); }`);
-  const loc = {
-    pos: gl.getAttribLocation(flat, "a_pos"), col: gl.getAttribLocation(flat, "a_col"),
-    mvp: gl.getUniformLocation(flat, "u_mvp"), size: gl.getUniformLocation(flat, "u_size"),
-    sPos: gl.getAttribLocation(shaded, "a_pos"), sMvp: gl.getUniformLocation(shaded, "u_mvp"),
-    sCol: gl.getUniformLocation(shaded, "u_col"),
-  };
+     precision mediump float; uniform vec3 u_col; out vec4 o;
+     void main() { o = vec4(u_col, 1.0); }`);
+  const uLines = uniforms(lines, ["u_mvp", "u_size", "u_col"]);
+  let skin = null, uSkin = null;
+  if (B) {
+    skin = program(
+      `#version 300 es
+       layout(location = 0) in vec3 a_pos; layout(location = 1) in vec3 a_nrm;
+       layout(location = 2) in vec4 a_joint; layout(location = 3) in vec4 a_weight;
+       uniform mat4 u_mvp; uniform vec4 u_bones[${3 * NB}];
+       out vec3 v_nrm; out vec3 v_world;
+       void main() {
+         vec4 r0 = vec4(0.0), r1 = vec4(0.0), r2 = vec4(0.0);
+         float total = 0.0;
+         for (int i = 0; i < 4; i++) {
+           int j = int(a_joint[i] + 0.5); float w = a_weight[i];
+           r0 += w * u_bones[3 * j]; r1 += w * u_bones[3 * j + 1]; r2 += w * u_bones[3 * j + 2];
+           total += w;
+         }
+         r0 /= total; r1 /= total; r2 /= total;
+         vec4 p = vec4(a_pos, 1.0);
+         v_world = vec3(dot(r0, p), dot(r1, p), dot(r2, p));
+         v_nrm = vec3(dot(r0.xyz, a_nrm), dot(r1.xyz, a_nrm), dot(r2.xyz, a_nrm));
+         gl_Position = u_mvp * vec4(v_world, 1.0); }`,
+      `#version 300 es
+       precision highp float; in vec3 v_nrm; in vec3 v_world;
+       uniform vec3 u_col; uniform vec3 u_eye; uniform vec3 u_light; out vec4 o;
+       void main() {
+         vec3 n = normalize(v_nrm), v = normalize(u_eye - v_world);
+         if (dot(n, v) < 0.0) n = -n;
+         float key = max(dot(n, u_light), 0.0), head = max(dot(n, v), 0.0);
+         float spec = pow(max(dot(n, normalize(u_light + v)), 0.0), 24.0);
+         o = vec4(u_col * (0.28 + 0.5 * key + 0.32 * head) + 0.12 * spec, 1.0); }`);
+    uSkin = uniforms(skin, ["u_mvp", "u_bones", "u_col", "u_eye", "u_light"]);
+  }
 
-  function buffer(data, usage, target) {
+  function buffer(data, target) {
     const b = gl.createBuffer();
     gl.bindBuffer(target || gl.ARRAY_BUFFER, b);
-    gl.bufferData(target || gl.ARRAY_BUFFER, data, usage || gl.STATIC_DRAW);
+    gl.bufferData(target || gl.ARRAY_BUFFER, data, gl.STATIC_DRAW);
     return b;
   }
-  function attrib(l, buf, size, type, normalized) {
-    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
-    gl.enableVertexAttribArray(l);
-    gl.vertexAttribPointer(l, size, type || gl.FLOAT, !!normalized, 0, 0);
-  }
-  function constantColour(rgb) {
-    gl.disableVertexAttribArray(loc.col);
-    gl.vertexAttrib3f(loc.col, rgb[0], rgb[1], rgb[2]);
+  const TYPES = { Float32Array: gl.FLOAT, Uint8Array: gl.UNSIGNED_BYTE,
+    Uint16Array: gl.UNSIGNED_SHORT, Int8Array: gl.BYTE, Uint32Array: gl.UNSIGNED_INT };
+  function attrib(location, data, size, normalized) {
+    buffer(data);
+    gl.enableVertexAttribArray(location);
+    gl.vertexAttribPointer(location, size, TYPES[data.constructor.name], !!normalized, 0, 0);
   }
 
-  // ---- scene colours: the points' own, or the affordance heat layer
-  const sceneBuf = buffer(sceneXyz);
-  const colourBuf = buffer(sceneRgb, gl.DYNAMIC_DRAW);
+  // ---- the scene: points, their colours (own or heat) and per-object state
+  const sceneVao = gl.createVertexArray();
+  gl.bindVertexArray(sceneVao);
+  attrib(0, sceneXyz, 3);
+  const colourBuf = buffer(sceneRgb);
+  gl.enableVertexAttribArray(1);
+  gl.vertexAttribPointer(1, 3, gl.UNSIGNED_BYTE, true, 0, 0);
+  attrib(2, sceneObj, 1);
+  gl.bindVertexArray(null);
+  const objectTex = gl.createTexture();
+  gl.bindTexture(gl.TEXTURE_2D, objectTex);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+  const objectState = new Uint8Array(4 * (M + 1));
+
   function inferno(a) {
     const s = D.inferno, x = a * (s.length - 1), i = Math.min(Math.floor(x), s.length - 2);
     const f = x - i;
     return [0, 1, 2].map((c) => s[i][c] * (1 - f) + s[i + 1][c] * f);
   }
+  let heatShown = false;
   function setColouring(channel) {
     let colours = sceneRgb;
-    if (channel !== "rgb") {
+    heatShown = channel !== "rgb";
+    if (heatShown) {
       const C = D.affordance.values.shape[1];
       colours = new Uint8Array(N * 3);
       for (let n = 0; n < N; n++) {
@@ -167,7 +280,8 @@ PAGE = r"""<!DOCTYPE html>
       }
     }
     gl.bindBuffer(gl.ARRAY_BUFFER, colourBuf);
-    gl.bufferData(gl.ARRAY_BUFFER, colours, gl.DYNAMIC_DRAW);
+    gl.bufferData(gl.ARRAY_BUFFER, colours, gl.STATIC_DRAW);
+    document.getElementById("heat").style.display = heatShown ? "inline-flex" : "none";
   }
   const colouring = document.getElementById("colouring");
   if (aff) {
@@ -180,46 +294,126 @@ PAGE = r"""<!DOCTYPE html>
       o.textContent = label;
       colouring.appendChild(o);
     }
+    const bar = document.querySelector("#heat .bar");
+    bar.style.background = "linear-gradient(to right, " + D.inferno.map((c) =>
+      "rgb(" + c.map((v) => Math.round(255 * v)).join(",") + ")").join(", ") + ")";
     colouring.addEventListener("change", () => { setColouring(colouring.value); redraw(); });
+    if (OPTIONS.colour && options.some((o) => o[0] === OPTIONS.colour)) {
+      colouring.value = OPTIONS.colour;
+      setColouring(OPTIONS.colour);
+    }
   } else {
     colouring.style.display = "none";
   }
 
-  // ---- per sample: skeleton, pelvis path, body
-  const bones = [];
-  for (let j = 1; j < J; j++) bones.push(D.parents[j], j);
-  const boneBuf = buffer(new Float32Array(bones.length * 3), gl.DYNAMIC_DRAW);
-  const jointBuf = buffer(new Float32Array(J * 3), gl.DYNAMIC_DRAW);
-  const pathBufs = [];
-  for (let s = 0; s < K; s++) {
-    const path = new Float32Array(T * 3);
-    for (let t = 0; t < T; t++) path.set(joints.subarray(((s * T + t) * J) * 3, ((s * T + t) * J + 1) * 3), t * 3);
-    pathBufs.push(buffer(path));
+  // ---- the bodies: rest meshes skinned in the vertex shader
+  const bodyVaos = [];
+  let faceType = 0, faceCount = 0;
+  if (B) {
+    const faces = decode(B.faces), jointIdx = decode(B.joints), weights = decode(B.weights);
+    faceType = faces instanceof Uint32Array ? gl.UNSIGNED_INT : gl.UNSIGNED_SHORT;
+    faceCount = faces.length;
+    const shared = { faces: buffer(faces, gl.ELEMENT_ARRAY_BUFFER), joints: buffer(jointIdx),
+      weights: buffer(weights) };
+    for (const shape of B.shapes) {
+      const vao = gl.createVertexArray();
+      gl.bindVertexArray(vao);
+      attrib(0, decode(shape.positions), 3);
+      attrib(1, decode(shape.normals), 3, true);
+      gl.bindBuffer(gl.ARRAY_BUFFER, shared.joints);
+      gl.enableVertexAttribArray(2);
+      gl.vertexAttribPointer(2, 4, TYPES[jointIdx.constructor.name], false, 0, 0);
+      gl.bindBuffer(gl.ARRAY_BUFFER, shared.weights);
+      gl.enableVertexAttribArray(3);
+      gl.vertexAttribPointer(3, 4, gl.UNSIGNED_BYTE, true, 0, 0);
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, shared.faces);
+      gl.bindVertexArray(null);
+      bodyVaos.push(vao);
+    }
   }
-  const planned = D.paths.map((q) => ({ buf: buffer(new Float32Array(q)), n: q.length / 3 }));
-  function stepOf(f) {
-    const i = D.segments.findIndex((g) => f >= g.first && f <= g.last);
-    return i < 0 ? "" : " · step " + (i + 1) + "/" + D.segments.length + ": " + D.segments[i].label;
-  }
-  let bodyBuf = null, faceBuf = null;
   const showBody = document.getElementById("showBody");
-  if (body) {
-    bodyBuf = buffer(new Float32Array(body.count * 3), gl.DYNAMIC_DRAW);
-    faceBuf = buffer(body.faces, gl.STATIC_DRAW, gl.ELEMENT_ARRAY_BUFFER);
+  if (B) {
+    showBody.checked = OPTIONS.body !== "0";
     showBody.addEventListener("change", () => redraw());
   } else {
     document.getElementById("bodyToggle").style.display = "none";
   }
+  const cutaway = document.getElementById("cutaway");
+  cutaway.checked = OPTIONS.cutaway !== "0";
+  cutaway.addEventListener("change", () => redraw());
+
+  // ---- lines: skeletons, pelvis paths, planned paths, the hovered object's box
+  const lineVao = gl.createVertexArray();
+  gl.bindVertexArray(lineVao);
+  const lineBuf = gl.createBuffer();
+  gl.bindBuffer(gl.ARRAY_BUFFER, lineBuf);
+  gl.enableVertexAttribArray(0);
+  gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
+  gl.bindVertexArray(null);
+  function drawLines(data, mode, colour) {
+    gl.uniform3fv(uLines.u_col, colour);
+    gl.bindBuffer(gl.ARRAY_BUFFER, lineBuf);
+    gl.bufferData(gl.ARRAY_BUFFER, data, gl.STREAM_DRAW);
+    gl.drawArrays(mode, 0, data.length / 3);
+  }
+  const boneList = [];
+  for (let j = 1; j < J; j++) boneList.push(D.parents[j], j);
+  const pelvisPaths = [];
+  for (let s = 0; s < K; s++) {
+    const path = new Float32Array(T * 3);
+    for (let t = 0; t < T; t++) path.set(joints.subarray((s * T + t) * J * 3, ((s * T + t) * J + 1) * 3), t * 3);
+    pelvisPaths.push(path);
+  }
+  const planned = D.paths.map((q) => new Float32Array(q));
+  function boxEdges(o) {
+    const c = [];
+    for (let i = 0; i < 8; i++) c.push([i & 1 ? o.hi[0] : o.lo[0], i & 2 ? o.hi[1] : o.lo[1], i & 4 ? o.hi[2] : o.lo[2]]);
+    const out = [];
+    for (let i = 0; i < 8; i++) for (const b of [1, 2, 4]) if (!(i & b)) out.push(...c[i], ...c[i | b]);
+    return new Float32Array(out);
+  }
+  const sampleColour = (s) => (B ? B.colours[s] : D.palette[s % D.palette.length]);
   const legend = document.getElementById("legend");
   if (K > 1) {
     for (let s = 0; s < K; s++) {
       const sw = document.createElement("span");
       sw.className = "swatch";
-      sw.style.background = "rgb(" + D.palette[s % D.palette.length].map((c) => Math.round(255 * c)).join(",") + ")";
+      sw.style.background = "rgb(" + sampleColour(s).map((c) => Math.round(255 * c)).join(",") + ")";
       legend.appendChild(sw);
       legend.appendChild(document.createTextNode("sample " + s));
     }
   }
+
+  // ---- objects, the target and a story's steps
+  const objectName = (i) => D.objects[i].category + " " + D.objects[i].id;
+  if (D.target >= 0) document.getElementById("target").textContent = "target: " + objectName(D.target);
+  const stepItems = D.segments.map((g) => {
+    const li = document.createElement("li");
+    li.textContent = g.label;
+    li.addEventListener("click", () => { setPlaying(false); setFrame(g.first); });
+    document.getElementById("steps").appendChild(li);
+    return li;
+  });
+  function stepAt(f) { return D.segments.findIndex((g) => f >= g.first && f <= g.last); }
+  function highlighted(f) {
+    const i = stepAt(f);
+    return i >= 0 && D.segments[i].object >= 0 ? D.segments[i].object : D.target;
+  }
+  const tags = D.objects.map(() => []);
+  if (D.target >= 0) tags[D.target].push("target");
+  D.segments.forEach((g, i) => { if (g.object >= 0) tags[g.object].push("step " + (i + 1)); });
+  const labelLayer = document.getElementById("labels");
+  const labels = [];
+  tags.forEach((t, i) => {
+    if (!t.length) return;
+    const el = document.createElement("div");
+    el.className = "label" + (i === D.target ? " target" : "");
+    el.textContent = objectName(i) + " · " + t.join(", ");
+    labelLayer.appendChild(el);
+    const o = D.objects[i];
+    const cx = 0.5 * (o.lo[0] + o.hi[0]), cy = 0.5 * (o.lo[1] + o.hi[1]);
+    labels.push({ el, object: i, at: [cx, cy, o.hi[2] + 0.15], base: [cx, cy, o.lo[2]] });
+  });
 
   // ---- camera: orbit about a target in a z-up world
   let lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
@@ -228,10 +422,11 @@ PAGE = r"""<!DOCTYPE html>
     hi[i % 3] = Math.max(hi[i % 3], joints[i]);
   }
   const home = { target: [0, 1, 2].map((c) => 0.5 * (lo[c] + hi[c])),
-    dist: 3.0 * Math.max(1.5, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])),
-    az: -Math.PI / 3, el: Math.PI / 6 };
+    dist: 2.6 * Math.max(1.6, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])),
+    az: -Math.PI / 3, el: 0.55 };
   let cam = Object.assign({}, home, { target: home.target.slice() });
-  const FOV = Math.PI / 4;
+  const FOV = Math.PI / 4, LIGHT = [0.35, -0.45, 0.82].map((v) => v / Math.hypot(0.35, 0.45, 0.82));
+  const CUT_TOP = hi[2] + 0.5, CUT_MARGIN = 0.6;
 
   function perspective(aspect, near, far) {
     const f = 1 / Math.tan(FOV / 2), nf = 1 / (near - far);
@@ -266,16 +461,45 @@ PAGE = r"""<!DOCTYPE html>
     return o;
   }
 
-  // ---- input
-  let drag = null;
+  // ---- the cutaway: a vertical plane on the camera's side of the bodies
+  let cut = [1, 0, Infinity, Infinity];
+  function updateCut() {
+    const d = [Math.cos(cam.az), Math.sin(cam.az)];
+    let front = -Infinity;
+    for (let s = 0; s < K; s++) {
+      const p = (s * T + frame) * J * 3;
+      front = Math.max(front, joints[p] * d[0] + joints[p + 1] * d[1]);
+    }
+    cut = [d[0], d[1], front + CUT_MARGIN, CUT_TOP];
+    const keep = highlighted(frame), on = cutaway.checked;
+    for (let i = 0; i < M; i++) {
+      const o = D.objects[i];
+      const cx = 0.5 * (o.lo[0] + o.hi[0]), cy = 0.5 * (o.lo[1] + o.hi[1]);
+      objectState[4 * (i + 1)] = on && !tags[i].length && i !== keep && (cx * d[0] + cy * d[1] > cut[2] || o.lo[2] > CUT_TOP) ? 255 : 0;
+      objectState[4 * (i + 1) + 1] = i === keep && !heatShown ? 255 : 0;
+    }
+    gl.bindTexture(gl.TEXTURE_2D, objectTex);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, M + 1, 1, 0, gl.RGBA, gl.UNSIGNED_BYTE, objectState);
+  }
+  function cutPoint(n) {  // the points shader's rule
+    const o = sceneObj[n], z = sceneXyz[3 * n + 2];
+    if (!cutaway.checked) return false;
+    if (o > 0) return objectState[4 * o] > 0;
+    return z > 0.12 && (z > cut[3] || sceneXyz[3 * n] * cut[0] + sceneXyz[3 * n + 1] * cut[1] > cut[2]);
+  }
+
+  // ---- input: orbit, pan, zoom, hover
+  let drag = null, hover = null, hovered = -1;
+  const tip = document.getElementById("tip");
   canvas.addEventListener("contextmenu", (ev) => ev.preventDefault());
   canvas.addEventListener("pointerdown", (ev) => {
     drag = { x: ev.clientX, y: ev.clientY, pan: ev.button === 2 || ev.shiftKey };
     canvas.setPointerCapture(ev.pointerId);
   });
   canvas.addEventListener("pointerup", () => { drag = null; });
+  canvas.addEventListener("pointerleave", () => { hover = null; hovered = -1; tip.style.display = "none"; redraw(); });
   canvas.addEventListener("pointermove", (ev) => {
-    if (!drag) return;
+    if (!drag) { hover = [ev.offsetX, ev.offsetY]; redraw(); return; }
     const dx = ev.clientX - drag.x, dy = ev.clientY - drag.y;
     drag.x = ev.clientX;
     drag.y = ev.clientY;
@@ -297,6 +521,24 @@ PAGE = r"""<!DOCTYPE html>
     cam = Object.assign({}, home, { target: home.target.slice() });
     redraw();
   });
+  function project(mvp, p) {  // CSS pixels and depth, or null behind the eye
+    const x = mvp[0] * p[0] + mvp[4] * p[1] + mvp[8] * p[2] + mvp[12];
+    const y = mvp[1] * p[0] + mvp[5] * p[1] + mvp[9] * p[2] + mvp[13];
+    const w = mvp[3] * p[0] + mvp[7] * p[1] + mvp[11] * p[2] + mvp[15];
+    if (w <= 0.01) return null;
+    return [(0.5 + 0.5 * x / w) * canvas.clientWidth, (0.5 - 0.5 * y / w) * canvas.clientHeight, w];
+  }
+  function pick(mvp, radius) {  // the object under the pointer: the nearest point within reach
+    let best = -1, depth = Infinity;
+    for (let n = 0; n < N; n++) {
+      if (cutPoint(n)) continue;
+      const q = project(mvp, [sceneXyz[3 * n], sceneXyz[3 * n + 1], sceneXyz[3 * n + 2]]);
+      if (!q || q[2] >= depth) continue;
+      const r = Math.max(3, Math.min(radius / q[2], 9));
+      if ((q[0] - hover[0]) ** 2 + (q[1] - hover[1]) ** 2 <= r * r) { depth = q[2]; best = n; }
+    }
+    return best < 0 ? -1 : sceneObj[best] - 1;
+  }
 
   // ---- timeline
   const slider = document.getElementById("time"), clock = document.getElementById("clock");
@@ -306,7 +548,10 @@ PAGE = r"""<!DOCTYPE html>
   function setFrame(f) {
     frame = ((f % T) + T) % T;
     slider.value = String(frame);
-    clock.textContent = "frame " + (frame + 1) + " / " + T + " · " + (frame / D.fps).toFixed(2) + " s" + stepOf(frame);
+    const i = stepAt(frame);
+    clock.textContent = "frame " + (frame + 1) + " / " + T + " · " + (frame / D.fps).toFixed(2) + " s" +
+      (i < 0 ? "" : " · step " + (i + 1) + "/" + D.segments.length);
+    stepItems.forEach((li, k) => { li.className = k === i ? "now" : ""; });
     redraw();
   }
   function setPlaying(on) {
@@ -339,6 +584,37 @@ PAGE = r"""<!DOCTYPE html>
     pending = true;
     requestAnimationFrame(draw);
   }
+  function placeLabels(mvp) {  // greedy: no label over another, a panel or a body
+    const placed = [document.getElementById("info"), document.getElementById("bar")]
+      .filter((p) => p.getBoundingClientRect).map((p) => p.getBoundingClientRect());
+    let body = null;
+    for (let s = 0; s < K; s++) for (let j = 0; j < J; j++) {
+      const q = project(mvp, joints.subarray(((s * T + frame) * J + j) * 3, ((s * T + frame) * J + j + 1) * 3));
+      if (!q) continue;
+      const r = 0.25 * canvas.clientHeight / (2 * Math.tan(FOV / 2) * q[2]);  // 25 cm
+      body = body || { left: Infinity, right: -Infinity, top: Infinity, bottom: -Infinity };
+      body = { left: Math.min(body.left, q[0] - r), right: Math.max(body.right, q[0] + r),
+        top: Math.min(body.top, q[1] - r), bottom: Math.max(body.bottom, q[1] + r) };
+    }
+    const free = (r) => placed.concat(body ? [body] : []).every((p) =>
+      r.left >= p.right || r.right <= p.left || r.top >= p.bottom || r.bottom <= p.top);
+    for (const l of labels) {
+      const q = project(mvp, l.at), base = project(mvp, l.base);
+      l.el.style.display = "block";  // measured as shown
+      const w = l.el.offsetWidth || 0, h = l.el.offsetHeight || 0;
+      const spots = [];  // above the object, under it, above the bodies
+      if (q) spots.push([q[0], q[1]]);
+      if (base) spots.push([base[0], base[1] + 4 + h]);
+      if (q && body) spots.push([q[0], body.top - 4]);
+      const r = spots.map(([x, y]) => ({ left: x - w / 2, right: x + w / 2, top: y - h, bottom: y }))
+        .find(free);
+      l.el.style.display = r ? "block" : "none";
+      if (!r) continue;
+      l.el.style.left = r.left + "px";
+      l.el.style.top = r.top + "px";
+      placed.push(r);
+    }
+  }
   function draw() {
     pending = false;
     const dpr = window.devicePixelRatio || 1;
@@ -350,56 +626,73 @@ PAGE = r"""<!DOCTYPE html>
     gl.enable(gl.DEPTH_TEST);
     const mvp = multiply(perspective(w / h, cam.dist * 0.01, cam.dist * 100), viewMatrix());
     const pixels = h / (2 * Math.tan(FOV / 2));
+    updateCut();
 
-    gl.useProgram(flat);
-    gl.uniformMatrix4fv(loc.mvp, false, mvp);
-    gl.uniform1f(loc.size, pointWorld * pixels);
-    attrib(loc.pos, sceneBuf, 3);
-    attrib(loc.col, colourBuf, 3, gl.UNSIGNED_BYTE, true);
+    gl.useProgram(points);
+    gl.uniformMatrix4fv(uPoints.u_mvp, false, mvp);
+    gl.uniform1f(uPoints.u_size, pointWorld * pixels);
+    gl.uniform4fv(uPoints.u_cut, cut);
+    gl.uniform1i(uPoints.u_cutaway, cutaway.checked ? 1 : 0);
+    gl.uniform3fv(uPoints.u_tint, D.highlight);
+    gl.activeTexture(gl.TEXTURE0);
+    gl.bindTexture(gl.TEXTURE_2D, objectTex);
+    gl.uniform1i(uPoints.u_objects, 0);
+    gl.bindVertexArray(sceneVao);
     gl.drawArrays(gl.POINTS, 0, N);
 
-    if (body && showBody.checked) {
-      gl.useProgram(shaded);
-      gl.uniformMatrix4fv(loc.sMvp, false, mvp);
-      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, faceBuf);
+    const bodies = B && showBody.checked;
+    if (bodies) {
+      gl.useProgram(skin);
+      gl.uniformMatrix4fv(uSkin.u_mvp, false, mvp);
+      gl.uniform3fv(uSkin.u_eye, eye());
+      gl.uniform3fv(uSkin.u_light, LIGHT);
       for (let s = 0; s < K; s++) {
-        const n = body.count * 3, off = (s * T + frame) * n;
-        gl.bindBuffer(gl.ARRAY_BUFFER, bodyBuf);
-        gl.bufferSubData(gl.ARRAY_BUFFER, 0, body.pos.subarray(off, off + n));
-        attrib(loc.sPos, bodyBuf, 3);
-        gl.uniform3fv(loc.sCol, D.palette[s % D.palette.length].map((c) => 0.55 + 0.45 * c));
-        gl.drawElements(gl.TRIANGLES, body.faces.length, gl.UNSIGNED_INT, 0);
+        const off = (s * T + frame) * NB * 12;
+        gl.uniform4fv(uSkin.u_bones, bones.subarray(off, off + NB * 12));
+        gl.uniform3fv(uSkin.u_col, B.colours[s]);
+        gl.bindVertexArray(bodyVaos[B.shape_of[s]]);
+        gl.drawElements(gl.TRIANGLES, faceCount, faceType, 0);
       }
-      gl.useProgram(flat);
     }
 
-    gl.disable(gl.DEPTH_TEST);  // the skeletons stay visible through walls and the body
-    constantColour([0.55, 0.85, 0.45]);  // planned walking paths, on the floor
-    for (const q of planned) { attrib(loc.pos, q.buf, 3); gl.drawArrays(gl.LINE_STRIP, 0, q.n); }
-    gl.uniform1f(loc.size, 0.035 * pixels);
-    for (let s = 0; s < K; s++) {
-      const colour = D.palette[s % D.palette.length];
-      const base = (s * T + frame) * J * 3, pose = joints.subarray(base, base + J * 3);
-      const segs = new Float32Array(bones.length * 3);
-      bones.forEach((j, i) => segs.set(pose.subarray(j * 3, j * 3 + 3), i * 3));
-      constantColour(colour.map((c) => 0.5 * c));
-      attrib(loc.pos, pathBufs[s], 3);
-      gl.drawArrays(gl.LINE_STRIP, 0, T);
-      constantColour(colour);
-      gl.bindBuffer(gl.ARRAY_BUFFER, boneBuf);
-      gl.bufferSubData(gl.ARRAY_BUFFER, 0, segs);
-      attrib(loc.pos, boneBuf, 3);
-      gl.drawArrays(gl.LINES, 0, bones.length);
-      gl.bindBuffer(gl.ARRAY_BUFFER, jointBuf);
-      gl.bufferSubData(gl.ARRAY_BUFFER, 0, pose);
-      attrib(loc.pos, jointBuf, 3);
-      gl.drawArrays(gl.POINTS, 0, J);
+    gl.useProgram(lines);
+    gl.uniformMatrix4fv(uLines.u_mvp, false, mvp);
+    gl.uniform1f(uLines.u_size, 0.035 * pixels);
+    gl.bindVertexArray(lineVao);
+    for (const q of planned) drawLines(q, gl.LINE_STRIP, [0.55, 0.85, 0.45]);
+    for (let s = 0; s < K; s++) drawLines(pelvisPaths[s], gl.LINE_STRIP, sampleColour(s).map((c) => 0.6 * c));
+    if (!bodies) {
+      gl.disable(gl.DEPTH_TEST);  // the skeletons stay visible through walls
+      for (let s = 0; s < K; s++) {
+        const base = (s * T + frame) * J * 3, pose = joints.subarray(base, base + J * 3);
+        const segs = new Float32Array(boneList.length * 3);
+        boneList.forEach((j, i) => segs.set(pose.subarray(j * 3, j * 3 + 3), i * 3));
+        drawLines(segs, gl.LINES, sampleColour(s));
+        drawLines(pose, gl.POINTS, sampleColour(s));
+      }
     }
-    window.jaxmotionViewer = { ready: true, frame: frame, frames: T, samples: K };
+    hovered = hover && !drag ? pick(mvp, pointWorld * pixels) : -1;
+    gl.disable(gl.DEPTH_TEST);
+    if (hovered >= 0) drawLines(boxEdges(D.objects[hovered]), gl.LINES, [0.95, 0.95, 0.95]);
+    gl.bindVertexArray(null);
+    tip.style.display = hovered >= 0 ? "block" : "none";
+    if (hovered >= 0) {
+      tip.textContent = objectName(hovered) + (tags[hovered].length ? " · " + tags[hovered].join(", ") : "");
+      tip.style.left = (hover[0] + 14) + "px";
+      tip.style.top = (hover[1] + 14) + "px";
+    }
+    placeLabels(mvp);
+    if (!window.jaxmotionViewer) {  // the first draw: any WebGL error is reported
+      const error = gl.getError();
+      if (error !== gl.NO_ERROR) console.error("WebGL error " + error);
+    }
+    window.jaxmotionViewer = { ready: true, frame: frame, frames: T, samples: K, body: !!bodies };
+    document.documentElement.setAttribute("data-frame", String(frame));
   }
 
   window.addEventListener("resize", redraw);
-  setFrame(0);
+  setFrame(Number(OPTIONS.frame) || 0);
+  if (OPTIONS.play === "1") setPlaying(true);
 })();
 </script>
 </body>

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion.errors import GenerateError
+from jaxmotion.export._common import random_subset
 
 __all__ = ["check_output_folder", "scene_heat", "summary", "write_generation"]
 
@@ -99,7 +100,8 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
                      p["transl"][i], p["betas"][i], res.fps)
     export.write_amass_npz(tmp / "motion_smplx.npz", p["global_orient"][i], p["body_pose"][i],
                            p["transl"][i], p["betas"][i], res.fps)
-    xyz, rgb = _subsample(res.scene.xyz, res.scene.rgb, 60_000, res.seed)
+    keep = random_subset(res.scene.num_points, 60_000, res.seed)
+    xyz, rgb = res.scene.xyz[keep], res.scene.rgb[keep]
     export.write_glb(tmp / "motion.glb", global_orient=p["global_orient"],
                      body_pose=p["body_pose"], transl=p["transl"], betas=p["betas"],
                      fps=res.fps, scene_xyz=xyz, scene_rgb=rgb)
@@ -114,7 +116,10 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
         else "")} for g in res.segments]
     export.write_viewer_html(tmp / "viewer.html", scene_xyz=xyz, scene_rgb=rgb,
                              joints=res.joints, fps=res.fps, text=res.text,
-                             affordance=heat, segments=steps, paths=res.paths)
+                             affordance=heat if np.any(heat) else None, smplx=p,
+                             scene_normal=res.scene.normal[keep],
+                             scene_instance=res.scene.instance[keep], objects=res.scene.objects,
+                             target_id=res.target_id, segments=steps, paths=res.paths)
 
 
 def check_output_folder(out) -> Path:
@@ -159,13 +164,6 @@ def scene_heat(res, xyz: np.ndarray) -> np.ndarray:
     ok = np.isfinite(d)
     heat[ok] = maps[0, idx[ok]].max(axis=-1)
     return heat
-
-
-def _subsample(xyz, rgb, n: int, seed: int):
-    if len(xyz) <= n:
-        return xyz, rgb
-    keep = np.sort(np.random.default_rng(seed).choice(len(xyz), n, replace=False))
-    return xyz[keep], rgb[keep]
 
 
 # --------------------------------------------------------------------------- region

@@ -54,6 +54,7 @@ from jaxmotion.export._common import (
     check_fps,
     scene_points,
     smplx_motion,
+    strongest_influences,
     vertex_normals,
 )
 from jaxmotion.export.rotations import rotvec_to_quat
@@ -105,14 +106,6 @@ class _Buffer:
             acc["min"], acc["max"] = np.atleast_1d(lo).tolist(), np.atleast_1d(hi).tolist()
         self.accessors.append(acc)
         return len(self.accessors) - 1
-
-
-def _strongest(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The ``_INFLUENCES`` largest weights per vertex (renormalised) and their joints."""
-    idx = np.argsort(-weights, axis=1, kind="stable")[:, :_INFLUENCES]
-    w = np.take_along_axis(weights, idx, axis=1)
-    w = w / w.sum(axis=1, keepdims=True)
-    return idx, w
 
 
 def _continuous(q: np.ndarray) -> np.ndarray:
@@ -228,7 +221,7 @@ def write_glb(
         normals = vertex_normals(v_rest, faces)
         normals[~np.any(normals, axis=1)] = [0.0, 1.0, 0.0]  # glTF wants unit normals everywhere
         folded = np.asarray(m.weights, np.float64) @ np.eye(len(keep))[column]
-        joint_idx, weights = _strongest(folded)
+        joint_idx, weights = strongest_influences(folded, _INFLUENCES)
         ibm = np.tile(np.eye(4), (len(keep), 1, 1))
         ibm[:, :3, 3] = -j_rest[keep]
         shapes[key] = {

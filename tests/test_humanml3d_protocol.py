@@ -69,6 +69,25 @@ def test_check_text_data_wants_converted_humanml3d(tmp_path):
         check_text_data(tmp_path, Evaluator())
 
 
+def test_convert_keeps_humanml3d_at_20_fps(tmp_path, capsys):
+    from jaxmotion.cli import main
+    from jaxmotion.data.format import load_sample
+
+    src = fake_humanml3d(tmp_path / "HumanML3D", splits=(("train", 2), ("test", 1)))
+    out = tmp_path / "hml3d"
+    assert main(["data", "convert", "--from", "humanml3d", str(src), "--out", str(out),
+                 "--fps", "20", "--max-frames", "60", "--min-frames", "40", "--fit-iters", "0",
+                 "--no-stats"]) == 0
+    assert json.loads((out / "manifest.json").read_text())["fps"] == 20
+    raw = np.load(src / "new_joints" / "000002.npy")
+    sample = load_sample(next((out / "samples" / "test").glob("*.npz")))
+    assert sample["fps"] == 20 and len(sample["joints"]) == len(raw)  # not resampled
+    assert str(sample["text"]) == "a person runs forward quickly."
+    assert main(["data", "convert", "--from", "humanise", str(src), "--out", str(out),
+                 "--fps", "20"]) == 2
+    assert "--fps do not apply to HUMANISE" in capsys.readouterr().err
+
+
 def test_format_table1_has_the_paper_columns_and_the_real_row():
     s = {k: {"mean": 0.5, "ci95": 0.01, "n": 3} for k, _ in TABLE1}
     report = {"settings": {"split": "test", "data_dir": "d", "num_cases": 8, "samples": 2,

@@ -105,6 +105,8 @@ def _cmd_data_convert(args: argparse.Namespace) -> int:
     options = {"action": args.action, "max_frames": args.max_frames,
                "min_frames": args.min_frames, "captions": args.captions, "split": args.split,
                "fit_iters": args.fit_iters, "floor": not args.keep_height}
+    if args.fps is not None:
+        options["fps"] = args.fps
     if args.kind == "bvh":
         options.update(up=args.up, unit=args.unit, joint_map=args.joint_map)
     elif (args.up, args.unit, args.joint_map) != ("y", "auto", "auto"):
@@ -122,6 +124,7 @@ def _convert_humanise(args: argparse.Namespace) -> int:
     from jaxmotion.io.humanise_convert import convert_humanise
 
     others = {"--action": args.action != "walk", "--captions": args.captions != "first",
+              "--fps": args.fps is not None,
               "--fit-iters": args.fit_iters != 200, "--keep-height": args.keep_height,
               "--up / --unit / --joint-map": (args.up, args.unit, args.joint_map) != (
                   "y", "auto", "auto")}
@@ -414,8 +417,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Read HumanML3D (the folder with new_joints/), AMASS (.npz) or BVH files "
         "(a file or a folder, searched recursively) and write DIR/scenes/floor.npz, "
         "DIR/samples/{train,val,test}/*.npz, DIR/manifest.json and DIR/stats.npz: clips of at "
-        "most 120 frames at 30 fps on a flat floor, labelled 'walk' unless --action says "
-        "otherwise. HUMANISE (--from humanise, with --scannet) keeps its actions, texts and "
+        "most --max-frames (120) frames at --fps (30) on a flat floor, labelled 'walk' unless "
+        "--action says otherwise. HUMANISE (--from humanise, with --scannet) keeps its actions, texts and "
         "target objects, each motion in its ScanNet room (DIR/scenes/<scene_id>.npz). "
         "Resumable: run the same command again to continue.",
     )
@@ -429,6 +432,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--out", required=True, help="dataset folder")
     q.add_argument("--action", default="walk", choices=("walk", "sit", "stand_up", "lie"),
                    help="action label of every sample (default walk; the sources have none)")
+    q.add_argument("--fps", type=float, default=None,
+                   help="frame rate of the samples (default 30, the scene data's; 20 keeps "
+                   "HumanML3D's own rate, as its text-to-motion protocol uses)")
     q.add_argument("--max-frames", type=int, default=120, help="clip length (default 120)")
     q.add_argument("--min-frames", type=int, default=30,
                    help="drop clips shorter than this (default 30)")
@@ -589,10 +595,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--vertex-stride", type=int, default=4,
                    help="use every Nth body vertex for the signed distances (default 4; 1 = all)")
     p.add_argument("--batch-size", type=int, default=16)
-    p.add_argument("--protocol", choices=("paper", "generate"), default="paper",
+    p.add_argument("--protocol", choices=("paper", "generate", "text"), default="paper",
                    help="paper (default): crop each case around the dataset's motion, as the "
                    "papers do; generate: crop where `jaxmotion generate` would, from the room "
-                   "and the text alone (scores the whole job, finding the object included)")
+                   "and the text alone (scores the whole job, finding the object included); "
+                   "text: text to motion on a floor, on converted HumanML3D (`jaxmotion data "
+                   "convert --from humanml3d`; needs --evaluator): the affordance paper's "
+                   "Table 1 (R-precision, FID, MM dist., diversity, multimodality)")
     p.add_argument("--grounding", choices=("auto", "adm", "llm"), default="auto",
                    help="with --protocol generate: how the region is found, as `jaxmotion "
                    "generate --grounding` (default auto; llm only with --descriptions)")

@@ -36,6 +36,11 @@ scene graph with ``grounding="auto"``, then the ADM among what is left); the goa
 then measured against the target's points in the whole room (a wrong region is a long
 distance, not a missing value), the instance success is 0 when the target is outside the crop,
 and each model's ``regions`` say how often the region was centred on the target.
+``protocol="text"`` is text to motion with a floor on converted HumanML3D (the affordance
+paper's Table 1, :mod:`jaxmotion.eval.text_protocol`): it needs an evaluator, scores the
+joints alone (no bodies) at the data's frame rate, and leaves out the columns that need a
+target object or furniture (:data:`~jaxmotion.eval.text_protocol.NOT_APPLICABLE`, grounding,
+action).
 
 A row with ``affordance=gt`` feeds the AMDM the ground-truth affordance maps (from the
 dataset's motion) instead of the ADM's, with the same motion noise as the ADM row: the gap
@@ -57,6 +62,12 @@ import numpy as np
 
 from jaxmotion.constants import SCENE_FPS, TEXT_ENCODER
 from jaxmotion.errors import GenerateError
+from jaxmotion.eval.text_protocol import (
+    NOT_APPLICABLE,
+    check_text_data,
+    format_table1,
+    mean_ci_cell,
+)
 from jaxmotion.options import GROUNDINGS, check_candidates, check_consistency
 
 __all__ = ["ModelSpec", "evaluate", "format_markdown", "parse_model", "write_report"]
@@ -349,6 +360,13 @@ def score_cases(cases, joints, affs, phys, body: bool, fps: float, fit_errors: l
     return rows
 
 
+def _applicable(protocol: str, rows: list[dict]) -> list[dict]:
+    """``rows`` without the columns that need a target object under the text protocol."""
+    if protocol != "text":
+        return rows
+    return [{k: v for k, v in row.items() if k not in NOT_APPLICABLE} for row in rows]
+
+
 def nan_mean(values) -> float:
     """Mean of the non-NaN ``values``; NaN (quietly) when there are none, e.g. the seat height
     of a walk, which has no seat."""
@@ -470,7 +488,7 @@ def evaluate(
     keep_motions: bool = False,
 ) -> dict:
     """Evaluate ``models`` on the first ``num_cases`` cases of ``split``; see the module
-    docstring (``protocol``: ``paper`` or ``generate``; ``grounding``: how the generate
+    docstring (``protocol``: ``paper``, ``generate`` or ``text``; ``grounding``: how the generate
     protocol finds the region, ``auto`` or ``adm``, as ``jaxmotion generate --grounding``).
     Returns a JSON-ready dict: settings, and per model its sampler, per-replication metrics
     and ``summary`` ``{metric: {mean, ci95, n}}``. With ``keep_motions`` each model's entry
@@ -492,9 +510,10 @@ def evaluate(
 
     if samples < 1 or replications < 1 or num_cases < 1:
         raise ValueError("num_cases, samples and replications must be ≥ 1")
-    if protocol not in ("paper", "generate"):
-        raise ValueError(f"protocol must be 'paper' (crops around the dataset's motion) or "
-                         f"'generate' (crops where jaxmotion generate puts them), got {protocol!r}")
+    if protocol not in ("paper", "generate", "text"):
+        raise ValueError(f"protocol must be 'paper' (crops around the dataset's motion), "
+                         f"'generate' (crops where jaxmotion generate puts them) or 'text' "
+                         f"(HumanML3D, text to motion on a floor), got {protocol!r}")
     if grounding not in GROUNDINGS:
         raise ValueError(f"grounding must be one of {', '.join(GROUNDINGS)}, got {grounding!r}")
     if evaluator is not None and isinstance(evaluator, (str, Path)):
@@ -505,8 +524,16 @@ def evaluate(
         from jaxmotion.eval.recognizer import load_recognizer
 
         recognizer = load_recognizer(recognizer)
-    encoder = load_text_encoder(TEXT_ENCODER)
     fps = SCENE_FPS
+    if protocol == "text":
+        if evaluator is None or recognizer is not None:
+            raise ValueError("protocol 'text' scores text-motion agreement: it needs an "
+                             "evaluator (--evaluator) and reads no action recognizer")
+        if any(m.object_centric for m in models):
+            raise ValueError("protocol 'text' has no target object; the object-centric "
+                             "pipeline needs one (give ADM,AMDM rows only)")
+        fps, body = check_text_data(data_dir, evaluator), False
+    encoder = load_text_encoder(TEXT_ENCODER)
     phys = physical_fn(body, fps)
     report = {"settings": {"data_dir": str(data_dir), "split": split, "num_cases": num_cases,
                            "samples": samples, "replications": replications, "seed": seed,
@@ -515,7 +542,7 @@ def evaluate(
                            "evaluator": getattr(evaluator, "version", None),
                            "recognizer": (recognizer.describe() if recognizer is not None
                                           else None),
-                           "protocol": protocol,
+                           "protocol": protocol, "fps": fps,
                            **({"grounding": grounding} if protocol == "generate" else {})},
               "models": {}}
     total = len(models) * replications
@@ -537,6 +564,7 @@ def evaluate(
         cases = load_eval_cases(data_dir, split, pipe.amdm_config, num_cases, seed, regions,
                             adm_config=pipe.adm_config,
                             exclude=grounding == "auto" and not pipe.room_view)
+        report["settings"]["num_cases"] = len(cases)  # fewer when the split has fewer
         emb = pipe.embed_text([c["text"] for c in cases], encoder)
         amdm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.amdm_guidance,
                                    consistency=spec.consistency)
@@ -614,9 +642,11 @@ def evaluate(
                         affs[ci][k] = res["affordance"][j]
             if keep_motions:
                 kept.append(joints)
-            grounded = two_stage and not oracle  # ground-truth maps are not scored
-            per_case = score_cases(cases, joints, affs if grounded else None, phys, body, fps,
-                                   fit_errors, bar, vertex_stride, recognizer)
+            # ground-truth maps are not scored, nor maps of a floor without a target
+            grounded = two_stage and not oracle and protocol != "text"
+            per_case = _applicable(protocol, score_cases(
+                cases, joints, affs if grounded else None, phys, body, fps, fit_errors, bar,
+                vertex_stride, recognizer))
             keys = sorted({k for row in per_case for k in row} - {"pelvis_speeds"})
             rep = {k: nan_mean([row.get(k, np.nan) for row in per_case]) for k in keys}
             rep.update(_speed_percentiles(per_case))
@@ -679,8 +709,8 @@ def evaluate(
         cases = load_eval_cases(data_dir, split, read_config(models[0].amdm), num_cases, seed,
                             first_regions)
         gt = np.stack([c["gt"] for c in cases])[:, None]
-        rows = score_cases(cases, gt, None, phys, body, fps, [], None, vertex_stride,
-                           recognizer)
+        rows = _applicable(protocol, score_cases(cases, gt, None, phys, body, fps, [], None,
+                                                 vertex_stride, recognizer))
         report["ground_truth"] = {k: nan_mean([r[k] for r in rows]) for k in rows[0]
                                   if k != "pelvis_speeds"}
         report["ground_truth"].update(_speed_percentiles(rows))
@@ -744,16 +774,13 @@ def _adm_arch(adm) -> str:
 
 
 # --------------------------------------------------------------------------- report
-def _cell(s: dict | None, scale: float = 1.0, digits: int = 3) -> str:
-    if not s or s.get("mean") is None:
-        return "–"
-    m, h = s["mean"] * scale, (s["ci95"] or 0.0) * scale
-    return f"{m:.{digits}f} ± {h:.{digits}f}"
-
-
 def format_markdown(report: dict) -> str:
-    """Tables laid out like the paper's Tables 2 (motion), 3 (grounding) and 5 (samplers)."""
+    """Tables laid out like the paper's Tables 2 (motion), 3 (grounding) and 5 (samplers);
+    under the text protocol, like its Table 1 (:func:`~jaxmotion.eval.text_protocol.
+    format_table1`)."""
     st = report["settings"]
+    if st.get("protocol") == "text":
+        return format_table1(report)
     lines = [f"Split `{st['split']}` of `{st['data_dir']}`: {st['num_cases']} cases × "
              f"{st['samples']} samples × {st['replications']} replications; body: {st['body']}; "
              f"mean ± 95 % interval over replications.", ""]
@@ -790,12 +817,14 @@ def format_markdown(report: dict) -> str:
         lines.append("| " + " | ".join(cells) + " |")
     for name, m in models.items():
         s = m["summary"]
-        cells = [name, m["sampler"], _cell(s.get("goal_distance")),
-                 _cell(s.get("contact"), 100, 2), _cell(s.get("non_collision"), 100, 2),
-                 _cell(s.get("apd")), _cell(s.get("skating"), 100, 2)]
+        cells = [name, m["sampler"], mean_ci_cell(s.get("goal_distance")),
+                 mean_ci_cell(s.get("contact"), 100, 2),
+                 mean_ci_cell(s.get("non_collision"), 100, 2),
+                 mean_ci_cell(s.get("apd")), mean_ci_cell(s.get("skating"), 100, 2)]
         if has_tm:
-            cells += [_cell(s.get(k)) for k in ("fid", "r_precision_top3", "multimodal_dist",
-                                               "diversity", "multimodality")]
+            cells += [mean_ci_cell(s.get(k)) for k in ("fid", "r_precision_top3",
+                                                       "multimodal_dist", "diversity",
+                                                       "multimodality")]
         lines.append("| " + " | ".join(cells) + " |")
     head = ["method", "sampler", "teleport (%) ↓", "pelvis speed p50 (m/s)",
             "pelvis speed p99 (m/s) ↓", "top joint speed (m/s) ↓", "jerk (m/s³) ↓",
@@ -829,7 +858,7 @@ def format_markdown(report: dict) -> str:
     for name, m in models.items():
         s = m["summary"]
         lines.append("| " + " | ".join([name, m["sampler"]] + [
-            _cell(s.get(k), sc, d) for k, sc, d in plaus_keys]) + " |")
+            mean_ci_cell(s.get(k), sc, d) for k, sc, d in plaus_keys]) + " |")
     grounded = {n: m for n, m in models.items()
                 if m["two_stage"] and m.get("affordance", "adm") == "adm"}
     if grounded:
@@ -840,7 +869,7 @@ def format_markdown(report: dict) -> str:
         for name, m in grounded.items():
             s = m["summary"]
             lines.append("| " + " | ".join([name, m["adm_arch"]] + [
-                _cell(s.get(k)) if "dist" in k else _cell(s.get(k), 100, 1)
+                mean_ci_cell(s.get(k)) if "dist" in k else mean_ci_cell(s.get(k), 100, 1)
                 for k in (*GROUNDING, "instance_success@0.3")]) + " |")
         lines += ["", "Grounding columns use the points of every object of the target's class "
                   "(the paper's definition); the last column counts only the target instance."]

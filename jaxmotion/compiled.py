@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["LIFT_BYTES", "cached_call", "cached_program", "code_digest", "digest", "prefetch",
-           "prefetched", "specs_of"]
+           "prefetched", "release", "specs_of"]
 
 
 def digest(*parts) -> str:
@@ -68,7 +68,8 @@ def cached_program(cache_dir: Path | None, name: str, fingerprint: str, build, s
     the artefact holds the traced program, so a repeated command only deserializes it and
     loads its executable from XLA's cache. ``fingerprint`` must change with anything else
     that changes the program (weights, sampler, versions); argument shapes and jaxmotion's
-    sources are added here. A program :func:`prefetch` started loading is taken from there.
+    sources are added here. A program :func:`prefetch` started loading is taken from there;
+    a program is loaded once per process.
 
     The constants the traced program closes over (the networks' weights) are lifted out of it
     when they come to :data:`LIFT_BYTES` or more: the program takes them as arguments and
@@ -78,10 +79,17 @@ def cached_program(cache_dir: Path | None, name: str, fingerprint: str, build, s
     same either way.
     """
     path = _artefact(cache_dir, name, fingerprint, specs)
-    pending = _PENDING.pop(str(path), None) if path is not None else None
+    if path is None:
+        return _load_program(None, build, specs)
+    if str(path) in _LOADED:
+        return _LOADED[str(path)]
+    pending = _PENDING.pop(str(path), None)
     if pending is not None and pending.exception() is None:  # waits for it
-        return pending.result()
-    return _load_program(path, build, specs)  # a failed prefetch's error surfaces here
+        program = pending.result()
+    else:  # a failed prefetch's error surfaces here
+        program = _load_program(path, build, specs)
+    _LOADED[str(path)] = program
+    return program
 
 
 def prefetch(cache_dir: Path | None, name: str, fingerprint: str, specs) -> bool:
@@ -90,7 +98,7 @@ def prefetch(cache_dir: Path | None, name: str, fingerprint: str, specs) -> bool
     loading its executable overlap the work before it is called. Only a program already on
     disk is prefetched (tracing stays on the caller's thread). Returns whether it started."""
     path = _artefact(cache_dir, name, fingerprint, specs)
-    if path is None or not path.is_file() or str(path) in _PENDING:
+    if path is None or not path.is_file() or str(path) in _PENDING or str(path) in _LOADED:
         return False
     import threading
     from concurrent.futures import Future
@@ -111,6 +119,14 @@ def prefetch(cache_dir: Path | None, name: str, fingerprint: str, specs) -> bool
 #: Programs :func:`prefetch` is loading, by artefact path, until :func:`cached_program` takes
 #: them.
 _PENDING: dict = {}
+#: Programs :func:`cached_program` loaded in this process, by artefact path.
+_LOADED: dict = {}
+
+
+def release() -> None:
+    """Drop the programs this process loaded (their executables and weights); the next call
+    of each loads it from disk again."""
+    _LOADED.clear()
 
 
 def prefetched() -> tuple[str, ...]:

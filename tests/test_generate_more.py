@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import jaxmotion
+import jaxmotion.scene.demo
 from jaxmotion.errors import GenerateError
 from jaxmotion.pipelines.checkpoints import default_checkpoints
 
@@ -142,12 +143,15 @@ def test_a_prefetched_program_is_the_one_called(tmp_path):
     assert not C.prefetch(tmp_path, "p", "v1", specs)  # nothing kept yet: traced on call
     np.testing.assert_array_equal(C.cached_call(tmp_path, "p", "v1", lambda: lambda a: a + 1,
                                                 (x,)), x + 1)
+    assert not C.prefetch(tmp_path, "p", "v1", specs)  # loaded in this process already
+    C.release()  # as a new process
     assert C.prefetch(tmp_path, "p", "v1", specs) and len(C.prefetched()) == 1
     assert not C.prefetch(tmp_path, "p", "v1", specs)  # already on its way
     unused = lambda: pytest.fail("a prefetched program is not traced again")
     np.testing.assert_array_equal(C.cached_call(tmp_path, "p", "v1", unused, (x,)), x + 1)
     assert C.prefetched() == ()
     # other shapes: another program, and the prefetched one stays until asked for
+    C.release()
     assert C.prefetch(tmp_path, "p", "v1", specs)
     C.cached_call(tmp_path, "p", "v1", lambda: lambda a: a + 1, (x[:2],))
     assert len(C.prefetched()) == 1
@@ -186,6 +190,7 @@ def test_cached_programs_take_large_constants_as_arguments(tmp_path):
     (small,) = tmp_path.glob("h-*.jaxexport")
     assert not small.with_suffix(".npz").exists()
     # a damaged weights file is rebuilt, not trusted
+    C.release()  # read from disk again, as a new process does
     prog.with_suffix(".npz").write_bytes(b"not an npz")
     np.testing.assert_array_equal(
         np.asarray(C.cached_call(tmp_path, "g", "v1", build, (x,))["y"]), np.asarray(want["y"]))

@@ -382,6 +382,7 @@ def test_generate_loads_the_kept_sampler_while_it_grounds(runs, tmp_path, monkey
     kw = {"pipeline": "object-centric", "object_checkpoints": files, "steps": 2,
           "motion_candidates": 1, "fit": False}
     first = generate("demo", "sit on the chair next to the table", **kw)
+    C.release()  # as a new process
     again = generate("demo", "sit on the chair next to the table", **kw)
     assert started == [False, True] and C.prefetched() == ()
     np.testing.assert_array_equal(again.joints, first.joints)

@@ -277,13 +277,11 @@ def encode_one_cached(text: str, cache_dir, *, tokens: bool = False, folder=None
     A fresh process otherwise spends about a second building the network before it can
     encode a new sentence; here it reads the weights as arrays (they are the program's
     arguments, so the file on disk stays small), tokenises, and runs the deserialised program.
-    The network is built only when the program is not on disk yet."""
-    from safetensors.numpy import load_file
-
+    The network is built only when the program is not on disk yet; the weights are read
+    and the program loaded once per process."""
     from jaxmotion.compiled import cached_call
 
     folder = Path(folder) if folder is not None else minilm_dir()
-    cfg = BertConfig.from_hf(folder / "config.json")
     max_length = max_seq_length(folder)
     tok = _fast_tokenizer(str(folder / "tokenizer.json"), max_length)
     ids = tok.encode(text).ids
@@ -292,11 +290,8 @@ def encode_one_cached(text: str, cache_dir, *, tokens: bool = False, folder=None
     mask = np.zeros((1, t), np.int32)
     arr[0, :len(ids)] = ids
     mask[0, :len(ids)] = 1
-    tensors = load_file(str(folder / "model.safetensors"))
-    order = _canonical_order(cfg)
-    leaves = tuple(np.ascontiguousarray(
-        (tensors[name].T if transpose else tensors[name]).astype(np.float32))
-        for _, name, transpose in order)
+    st = (folder / "model.safetensors").stat()
+    leaves = _weight_leaves(str(folder), st.st_size, st.st_mtime_ns)
 
     def build():
         enc = load_minilm(folder)
@@ -304,6 +299,7 @@ def encode_one_cached(text: str, cache_dir, *, tokens: bool = False, folder=None
         paths = [tuple(getattr(k, "key", getattr(k, "idx", getattr(k, "name", k))) for k in p)
                  for p, _ in flat]
         paths = [p[:-1] if p and p[-1] == "value" else p for p in paths]
+        order = _canonical_order(BertConfig.from_hf(folder / "config.json"))
         if [tuple(p) for p in paths] != [p for p, _, _ in order]:
             raise AssertionError("MiniLM's state is not flattened in the canonical order; "
                                  "update _canonical_order")
@@ -314,11 +310,23 @@ def encode_one_cached(text: str, cache_dir, *, tokens: bool = False, folder=None
 
         return run
 
-    st = (folder / "model.safetensors").stat()
     out = cached_call(Path(cache_dir), "minilm-tokens" if tokens else "minilm",
                       f"{st.st_size},{st.st_mtime_ns}", build, (leaves, arr, mask))
     out = np.asarray(out, np.float32)[0]
     return out[:len(ids)] if tokens else out
+
+
+@functools.lru_cache(maxsize=1)
+def _weight_leaves(folder: str, size: int, mtime_ns: int) -> tuple:
+    """The network's weights as float32 arrays in :func:`_canonical_order`, read once per
+    process (``size`` and ``mtime_ns`` of the file key the cache)."""
+    from safetensors.numpy import load_file
+
+    tensors = load_file(str(Path(folder) / "model.safetensors"))
+    order = _canonical_order(BertConfig.from_hf(Path(folder) / "config.json"))
+    return tuple(np.ascontiguousarray(
+        (tensors[name].T if transpose else tensors[name]).astype(np.float32))
+        for _, name, transpose in order)
 
 
 @functools.lru_cache(maxsize=2)

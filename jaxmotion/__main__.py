@@ -1,6 +1,6 @@
 """``python -m jaxmotion`` is the same as the ``jaxmotion`` command."""
 
-from jaxmotion.cli import main
+from jaxmotion.cli import run
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run()

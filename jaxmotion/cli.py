@@ -10,6 +10,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from jaxmotion._version import __version__
 
@@ -702,5 +703,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
 
 
+def run(argv: Sequence[str] | None = None) -> NoReturn:
+    """The ``jaxmotion`` command (and ``python -m jaxmotion``): :func:`main`, then the process
+    ends without tearing the interpreter down. Tearing down XLA's runtime and the loaded
+    modules took 0.2–0.4 s of a 3 s ``generate`` on a 2-core CPU; by then every file is
+    written and closed, and the exit handlers (JAX's, the scratch cache's removal) still
+    run. :func:`main` itself returns, for callers in Python."""
+    import atexit
+    import os
+
+    try:
+        code = main(argv)
+    except SystemExit as done:  # argparse: --help, --version, a usage error
+        code = done.code
+        if isinstance(code, str):
+            print(code, file=sys.stderr)
+        code = 1 if isinstance(code, str) else int(code or 0)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed or broken pipe
+            pass
+    atexit._run_exitfuncs()
+    os._exit(code)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())
+    run()

@@ -135,7 +135,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     from jaxmotion.pipelines.object_centric import prefetch_sampler
     from jaxmotion.scene.checks import scene_warnings
     from jaxmotion.scene.demo import load_scene_arg
-    from jaxmotion.text.condition import embed_one
+    from jaxmotion.text.condition import blank_condition, embed_one
 
     times: dict[str, float] = {}
     t0 = [time.perf_counter()]
@@ -174,8 +174,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     lap("load")
 
     # ground: which object, and the square of the room the models see
-    view = None
-    get_text_pipe = functools.partial(models.pipeline, models.text_adm)
+    view, get_text_pipe = None, functools.partial(models.pipeline, models.text_adm)
     if models.room_view:
         from jaxmotion.grounding.region import room_view_maps
 
@@ -188,9 +187,10 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         centre = centre_on_object(target_obj, lo, hi, spec.size)
         chosen, how = int(opts.object_id), "object_id"
     else:
-        chooser = AdmChooser(get_text_pipe, text_emb, lambda: root, adm_sampler, opts.seed,
-                             None if aot_dir is None else
-                             (aot_dir, digest(versions, adm_sampler, models.text_adm)), split=0)
+        chooser = AdmChooser(get_text_pipe, text_emb, lambda: root, adm_sampler, opts.seed, None
+                             if aot_dir is None else (aot_dir, digest(versions, adm_sampler,
+                                                                      models.text_adm)), split=0,
+                             blank_text=blank_condition(adm_text_tokens(models.adm_config)))
         centre, chosen, how = find_region(room, instruction, opts.grounding, spec, view=view,
                                           adm=chooser)
         if not models.room_view:

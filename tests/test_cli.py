@@ -29,6 +29,33 @@ def test_help_and_version(capsys):
     assert "usage" in capsys.readouterr().out
 
 
+def test_the_command_process_exits_with_main_s_code(tmp_path):
+    """``python -m jaxmotion`` (and the ``jaxmotion`` script) end through ``cli.run``: the exit
+    code and every line of output are main's, and the exit handlers run (the scratch cache
+    of ``JAXMOTION_CACHE=off`` is removed)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "JAXMOTION_CACHE": "off", "TMPDIR": str(tmp_path)}
+    run = lambda *a: subprocess.run([sys.executable, "-m", "jaxmotion", *a], env=env,
+                                    capture_output=True, text=True, timeout=120, check=False)
+    done = run("version")
+    assert done.returncode == 0 and done.stdout.strip() == f"jaxmotion {__version__}"
+    done = run("--no-such-option")
+    assert done.returncode == 2 and "usage" in done.stderr
+    mesh = trimesh.creation.box(extents=(2.0, 3.0, 1.0))
+    mesh.export(tmp_path / "room.ply")
+    done = run("scene", "info", str(tmp_path / "room.ply"), "--points", "50")
+    assert done.returncode == 0 and json.loads(done.stdout)["points"] == 50
+    done = run("scene", "info", str(tmp_path / "missing.ply"))
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
+    # an error after the scratch cache was made (JAXMOTION_CACHE=off): removed at exit
+    done = run("generate", "--scene", "demo", "--object", "999", "--out", str(tmp_path / "o"))
+    assert done.returncode == 2 and "unknown object id 999" in done.stderr
+    assert not [p for p in tmp_path.iterdir() if p.is_dir()]
+
+
 def test_scene_info_and_convert(tmp_path, capsys):
     mesh = trimesh.creation.box(extents=(2.0, 3.0, 1.0))
     path = tmp_path / "room.ply"

@@ -159,6 +159,23 @@ def test_a_prefetched_program_is_the_one_called(tmp_path):
     assert C.prefetched() == ()
 
 
+def test_the_adm_s_kept_program_loads_while_the_text_encodes(ckpt, tmp_path, monkeypatch):
+    """With candidates to choose among, a repeated generate starts loading the ADM's kept
+    program before the text condition is computed, and the choice takes it."""
+    import jaxmotion.compiled as C
+
+    monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "cache"))
+    started, real = [], C.prefetch
+    monkeypatch.setattr(C, "prefetch", lambda d, name, *a: started.append(
+        (name, real(d, name, *a))) or started[-1][1])
+    first = jaxmotion.generate("demo", "sit on the stool", checkpoints=ckpt, fit=False, **FAST)
+    C.release()  # as a new process
+    again = jaxmotion.generate("demo", "sit on the stool", checkpoints=ckpt, fit=False, **FAST)
+    assert first.grounding == "adm" and ("adm_region", True) in started
+    assert C.prefetched() == () and again.target_id == first.target_id
+    np.testing.assert_array_equal(again.joints, first.joints)
+
+
 def test_cached_programs_take_large_constants_as_arguments(tmp_path):
     """Weights a program closes over (≥ LIFT_BYTES) leave it as arguments kept in an ``.npz``
     beside it; the numbers are those of the program with them inside, cached or not."""

@@ -246,3 +246,18 @@ def test_word_level_generate_caches_the_words(word_runs, tmp_path, monkeypatch):
     np.testing.assert_array_equal(again.joints, first.joints)
     emb = G.embed_one("sit on the chair next to the table", tmp_path / "xla" / "text-embeddings", 4)
     assert emb["tokens"].shape == (1, 4, 384) and emb["mask"].all()
+
+
+def test_a_blank_condition_has_the_shapes_of_a_sentence_s(tmp_path):
+    """blank_condition stands in for embed_one's output when a compiled program is looked up
+    before the sentence is encoded: same tree, shapes and dtypes, with and without words."""
+    import jax
+
+    from jaxmotion.text.condition import blank_condition, embed_one
+
+    for tokens in (0, 24):
+        real = embed_one("sit on the chair", tmp_path / "text-embeddings", tokens)
+        blank = blank_condition(tokens)
+        assert jax.tree.structure(blank) == jax.tree.structure(real)
+        for b, r in zip(jax.tree.leaves(blank), jax.tree.leaves(real), strict=True):
+            assert (b.shape, b.dtype) == (r.shape, r.dtype) and not np.any(b)

@@ -43,7 +43,9 @@ class AdmChooser:
     a new process skips loading and tracing it; None runs it directly. With ``split`` = i,
     ``key()`` gives a key's data (``uint32[2]``) and the ADM draws with split i of that key,
     taken inside the program (an eager split compiles three small programs in every fresh
-    process, ~0.3 s)."""
+    process, ~0.3 s). ``blank_text``: a condition of ``text``'s shapes
+    (:func:`jaxmotion.text.condition.blank_condition`), with which the kept program starts
+    loading before ``text`` is called."""
 
     get_pipe: Callable[[], Any]
     text: Any
@@ -52,6 +54,7 @@ class AdmChooser:
     seed: int
     programs: tuple | None = None
     split: int | None = None
+    blank_text: Any = None
 
 
 def _crops(room, centres, spec, seed: int, tag: int):
@@ -79,12 +82,16 @@ def _adm_maps(adm: AdmChooser, crops) -> np.ndarray:
     size = b if adm.programs is None else 1 << max(0, b - 1).bit_length()
     rows = [crops[min(i, b - 1)] for i in range(size)]
     key = adm.key()
+    tile = lambda text: jax.tree.map(lambda a: np.ascontiguousarray(
+        np.broadcast_to(a[0], (size, *a.shape[1:]))), text)
     args = (np.asarray(key if adm.split is not None else jax.random.key_data(key)),
-            np.stack([c[2] for c in rows]),
-            np.stack([c[3] for c in rows]),
-            jax.tree.map(lambda a: np.ascontiguousarray(
-                np.broadcast_to(a[0], (size, *a.shape[1:]))),
-                adm.text() if callable(adm.text) else adm.text))
+            np.stack([c[2] for c in rows]), np.stack([c[3] for c in rows]))
+    if adm.programs is not None and adm.blank_text is not None:  # loads while the text encodes
+        from jaxmotion.compiled import prefetch, specs_of
+
+        prefetch(*adm.programs[:1], "adm_region", adm.programs[1],
+                 specs_of((*args, tile(adm.blank_text))))
+    args = (*args, tile(adm.text() if callable(adm.text) else adm.text))
     sampler = adm.sampler
 
     def build():

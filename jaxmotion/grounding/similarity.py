@@ -26,10 +26,13 @@ from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.grounding.lexicon import ACTION_PROTOTYPES
 
 __all__ = ["ACTION_MARGIN", "ACTION_THRESHOLD", "CATEGORY_MARGIN", "CATEGORY_THRESHOLD",
-           "TextSimilarity", "guess_action", "guess_category"]
+           "ONE_BY_ONE", "TextSimilarity", "guess_action", "guess_category"]
 
 ACTION_THRESHOLD, ACTION_MARGIN = 0.6, 0.1
 CATEGORY_THRESHOLD, CATEGORY_MARGIN = 0.6, 0.04
+#: New phrases up to this many are embedded one by one by the traced program on disk; more
+#: load the sentence encoder once and go as a batch (:meth:`TextSimilarity.encode`).
+ONE_BY_ONE = 16
 
 
 class TextSimilarity:
@@ -62,8 +65,10 @@ class TextSimilarity:
                                                                                  np.float32)
 
     def encode(self, texts: list[str]) -> np.ndarray:
-        """The sentence encoder's embeddings of ``texts`` through the on-disk cache: a few new
-        phrases go through the encoder's traced program on disk, more load the encoder."""
+        """The sentence encoder's embeddings of ``texts`` through the on-disk cache: up to
+        :data:`ONE_BY_ONE` new phrases go one by one through the encoder's traced program on
+        disk (loaded once per process, ~0.05 s a phrase), more load the encoder (~2 s) and go
+        as a batch."""
         from jaxmotion.text import EmbeddingCache, cache_key
         from jaxmotion.text.condition import text_encoder
         from jaxmotion.text.minilm import encode_one_cached, minilm_dir
@@ -77,7 +82,7 @@ class TextSimilarity:
         found = cache.get(keys)
         todo = [(k, t) for k, t in zip(keys, texts) if k not in found]
         if todo:
-            if len(todo) <= 3:
+            if len(todo) <= ONE_BY_ONE:
                 programs = self.cache_dir.parent / "programs"
                 new = [encode_one_cached(t, programs) for _, t in todo]
             else:

@@ -142,6 +142,16 @@ def embed_one(text: str, cache_dir: Path | None, text_tokens: int = 0):
     return {"pooled": emb, "tokens": tokens, "mask": mask}
 
 
+def blank_condition(text_tokens: int = 0, dim: int = 384):
+    """A text condition of :func:`embed_one`'s shapes and dtypes for ``text_tokens``, all
+    zeros: what a compiled program is looked up by before the sentence is encoded."""
+    emb = np.zeros((1, dim), np.float32)
+    if not text_tokens:
+        return emb
+    return {"pooled": emb, "tokens": np.zeros((1, int(text_tokens), dim), np.float32),
+            "mask": np.zeros((1, int(text_tokens)), bool)}
+
+
 def pooled_text(text):
     """The pooled sentence embedding ``[B, D]`` of a text condition (an array, or the
     word-level mapping ``{"pooled", "tokens", "mask"}``), which is all the AMDM and the

@@ -707,25 +707,30 @@ def run(argv: Sequence[str] | None = None) -> NoReturn:
     """The ``jaxmotion`` command (and ``python -m jaxmotion``): :func:`main`, then the process
     ends without tearing the interpreter down. Tearing down XLA's runtime and the loaded
     modules took 0.2–0.4 s of a 3 s ``generate`` on a 2-core CPU; by then every file is
-    written and closed, and the exit handlers (JAX's, the scratch cache's removal) still
-    run. :func:`main` itself returns, for callers in Python."""
+    written and closed. The exit handlers registered while the command ran (JAX's, the scratch
+    cache's removal) still run: the process ends in a handler registered before them, which
+    ``atexit`` calls last. :func:`main` itself returns, for callers in Python."""
     import atexit
     import os
 
+    code = [0]
+
+    def leave() -> None:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):  # a closed or broken pipe
+                pass
+        os._exit(code[0])
+
+    atexit.register(leave)
     try:
-        code = main(argv)
+        code[0] = main(argv)
     except SystemExit as done:  # argparse: --help, --version, a usage error
-        code = done.code
-        if isinstance(code, str):
-            print(code, file=sys.stderr)
-        code = 1 if isinstance(code, str) else int(code or 0)
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):  # a closed or broken pipe
-            pass
-    atexit._run_exitfuncs()
-    os._exit(code)
+        if isinstance(done.code, str):
+            print(done.code, file=sys.stderr)
+        code[0] = 1 if isinstance(done.code, str) else int(done.code or 0)
+    sys.exit(code[0])
 
 
 if __name__ == "__main__":  # pragma: no cover

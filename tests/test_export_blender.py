@@ -20,6 +20,7 @@ from jaxmotion.geometry import (
 )
 from jaxmotion.io import load_motion
 from jaxmotion.result import OUTPUT_FILES, Generation
+from jaxmotion.scene import Scene
 
 
 def _params(seed, t, scale=0.4):
@@ -210,7 +211,7 @@ def _small_generation(k=2, t=12):
                        for s in range(k)])
     joints = (fitted + rng.normal(size=fitted.shape) * 0.01).astype(np.float32)
     xyz = rng.uniform([-2, -2, 0], [2, 2, 2], size=(200, 3)).astype(np.float32)
-    scene = SimpleNamespace(name="tiny", xyz=xyz, rgb=np.full_like(xyz, 0.5), objects=[])
+    scene = Scene(xyz=xyz, rgb=np.full_like(xyz, 0.5), name="tiny")
     return Generation(
         text="sit on the chair", scene=scene, joints=joints, fps=30.0,
         mask=np.ones(t, bool), smplx=smplx,

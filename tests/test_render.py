@@ -240,6 +240,33 @@ def test_follow_camera_pans_smoothly_and_grid_tiles():
         _clip(camera="orbit")
 
 
+@pytest.mark.parametrize("camera", ["fixed", "follow"])
+def test_the_cutaway_is_computed_on_the_picture_it_cuts(camera, monkeypatch):
+    """The body's holes (where scene points would hide it) are found on the pixels of the
+    picture the room is drawn into: the follow camera draws a zoomed picture, and holes found
+    on the unzoomed one missed what stood in front of the body."""
+    import jaxmotion.render.frames as F
+
+    built, drawn = [], []
+
+    class Holes(F.CutawayHoles):
+        def __init__(self, cam, joints, **kw):
+            built.append(cam)
+            super().__init__(cam, joints, **kw)
+
+    monkeypatch.setattr(F, "CutawayHoles", Holes)
+    clip = _clip(size=(64, 48), t=150, walk=6.0, camera=camera)
+    real = clip.scene.background
+    monkeypatch.setattr(clip.scene, "background",
+                        lambda cam, *a, **kw: drawn.append(cam) or real(cam, *a, **kw))
+    clip.draw(75)
+    assert len(built) == len(drawn) == 1
+    assert (built[0].width, built[0].height, built[0].focal) == (
+        drawn[0].width, drawn[0].height, drawn[0].focal)
+    if camera == "follow":
+        assert drawn[0].width > 64  # the zoomed picture the frames are cropped from
+
+
 def test_video_and_still_files(tmp_path):
     import imageio.v3 as iio
 

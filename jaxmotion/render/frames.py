@@ -123,18 +123,18 @@ class Clip:
             centre, _ = frame_box(self.joints)
             back = -base.rot[2, :2] / max(float(np.linalg.norm(base.rot[2, :2])), 1e-9)
             reach = float(((self.joints[..., :2] - centre[:2]) @ back).max()) + 0.3
-            step = max(1, self.joints.shape[1] // 40)
-            holes = CutawayHoles(base, self.joints[:, ::step])
+            poses = self.joints[:, ::max(1, self.joints.shape[1] // 40)]
             if self.mode == "fixed":
                 s = self._room_supersample
                 ss = round(s) if s == round(s) else 1
-                self._room = self.scene.background(base, centre, reach, self.top,
-                                                   supersample=ss, holes=holes)
+                self._room = self.scene.background(base, centre, reach, self.top, supersample=ss,
+                                                   holes=CutawayHoles(base, poses))
                 self._room.keep_world = True  # every frame's shadows fall on it
             else:  # a follow camera crops frames out of a picture drawn at its zoom
                 scale = min(self.plan.zoom, math.sqrt(MAX_ROOM_PIXELS / (base.width * base.height)))
-                self._room = self.scene.background(base.scaled(max(1.0, scale)), centre, reach,
-                                                   self.top, holes=holes)
+                big = base.scaled(max(1.0, scale))  # the holes on the picture's own pixels
+                self._room = self.scene.background(big, centre, reach, self.top,
+                                                   holes=CutawayHoles(big, poses))
         return self._room
 
     def _background(self, f: int):

@@ -72,11 +72,10 @@ def cached_program(cache_dir: Path | None, name: str, fingerprint: str, build, s
     a program is loaded once per process.
 
     The constants the traced program closes over (the networks' weights) are lifted out of it
-    when they come to :data:`LIFT_BYTES` or more: the program takes them as arguments and
-    they are kept beside it (``<artefact>.npz``). A program with
-    its weights baked in compiles to an executable of their size, and loading that took
-    longer than running it; the weights themselves load in milliseconds. The numbers are the
-    same either way.
+    when they come to :data:`LIFT_BYTES` or more: the program takes them as arguments and they
+    are kept beside it (``<artefact>.npz``). A program with its weights baked in compiles to
+    an executable of their size, and loading that took longer than running it; the weights
+    themselves load in milliseconds. The numbers are the same either way.
     """
     path = _artefact(cache_dir, name, fingerprint, specs)
     if path is None:

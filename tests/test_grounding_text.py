@@ -215,6 +215,21 @@ def test_missing_classes_and_impossible_requests_are_said():
     assert "door, table" in found.error
 
 
+def test_an_unlabelled_scene_leaves_the_place_to_the_affordance_map():
+    """A scan or mesh without an object table cannot be told to have no bed: no candidates,
+    no error, and the notes say why (the README's "lie down on the bed" in your own room)."""
+    unlabelled = SimpleNamespace(objects=[], xyz=np.zeros((4, 3)), instance=np.full(4, -1),
+                                 semantic=np.full(4, -1))
+    for text in ("lie down on the bed", "sit down", "sit on the chair next to the table",
+                 "walk to the door"):
+        found = ground_candidates(unlabelled, text)
+        assert found.objects == [] and not found.error and not found.warnings
+        assert "no object labels" in found.notes[0]
+    u = explain(unlabelled, "lie down on the bed", None, "adm peak", warn=False)
+    assert u.target_id is None and any("no object labels, so the region" in n
+                                       for n in u.notes)
+
+
 def test_find_region_refuses_an_action_the_room_cannot_take():
     from jaxmotion.grounding import find_region
 

@@ -127,8 +127,9 @@ def explain(room, instruction, chosen, how: str, options=None, *, echo: bool = F
         notes.extend(found.notes)
         warns.extend(found.warnings)
         if chosen is None:
-            notes.append("target: none; the text names no object of this room, so the region "
-                         "is where the ADM's map is strongest")
+            notes.append("target: none; " + ("the text names no object of this room" if objects
+                                             else "the scene has no object labels")
+                         + ", so the region is where the ADM's map is strongest")
         elif how == "adm" and len(found.objects) > 1:
             names = ", ".join(_name(o) for o in found.objects)
             notes.append(f"target: {target}, chosen by the ADM's map among {names}")

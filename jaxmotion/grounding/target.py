@@ -225,9 +225,13 @@ def _plural(action) -> str:
 def ground_candidates(room, text, grounding: str = "auto") -> Candidates:
     """The room's objects ``text`` (a string or an :class:`Instruction`) may mean, how they
     were found and what the user should know (:class:`Candidates`); never raises for a
-    text."""
+    text. A scene without an object table (an unlabelled scan) has no candidates and no
+    error: the place comes from the affordance model's map."""
     ins = text if isinstance(text, Instruction) else read_instruction(text)
     objects = list(object_table(room))
+    if not objects:  # an unlabelled scan or mesh: nothing to ground in, the ADM's map chooses
+        return Candidates([], "", ("the scene has no object labels: the affordance model's map "
+                                   "over the room chooses where",))
     r, action = ins.reading, ins.action
     notes: list[str] = []
     warns: list[str] = []

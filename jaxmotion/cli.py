@@ -419,8 +419,9 @@ def build_parser() -> argparse.ArgumentParser:
         "(a file or a folder, searched recursively) and write DIR/scenes/floor.npz, "
         "DIR/samples/{train,val,test}/*.npz, DIR/manifest.json and DIR/stats.npz: clips of at "
         "most --max-frames (120) frames at --fps (30) on a flat floor, labelled 'walk' unless "
-        "--action says otherwise. HUMANISE (--from humanise, with --scannet) keeps its actions, texts and "
-        "target objects, each motion in its ScanNet room (DIR/scenes/<scene_id>.npz). "
+        "--action says otherwise. HUMANISE (--from humanise, with --scannet) keeps its "
+        "actions, texts and target objects, each motion in its ScanNet room "
+        "(DIR/scenes/<scene_id>.npz). "
         "Resumable: run the same command again to continue.",
     )
     q.add_argument("src", help="the source file or folder")

@@ -20,17 +20,26 @@ __all__ = ["LIFT_BYTES", "cached_call", "cached_program", "code_digest", "digest
 
 
 def digest(*parts) -> str:
-    """sha256 over strings and files (for the names of cached compiled programs)."""
+    """sha256 over strings and files (for the names of cached compiled programs); a file's
+    bytes are hashed once per process while its size and modification time stay the same."""
     import hashlib
 
     h = hashlib.sha256()
     for part in parts:
         if isinstance(part, Path):
-            h.update(part.read_bytes())
+            st = part.stat()
+            h.update(_file_sha256(str(part), st.st_size, st.st_mtime_ns))
         else:
             h.update(repr(part).encode())
         h.update(b"\0")
     return h.hexdigest()[:32]
+
+
+@functools.cache
+def _file_sha256(path: str, size: int, mtime_ns: int) -> bytes:
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).digest()
 
 
 @functools.lru_cache(maxsize=1)
@@ -193,8 +202,7 @@ def _export(path: Path | None, build, specs):
     if consts is None:
         exp = jexport.export(jax.jit(fn))(*specs)
     else:
-        const_specs = tuple(jax.ShapeDtypeStruct(c.shape, c.dtype) for c in consts)
-        exp = jexport.export(jax.jit(fn))(const_specs, *specs)
+        exp = jexport.export(jax.jit(fn))(specs_of(consts), *specs)
     if path is None:
         return exp, consts
     consts_path = path.with_suffix(".npz")

@@ -20,9 +20,9 @@ This module only orchestrates; each stage lives in its own module:
    strongest predicted affordance when the text names no object of the room);
 4. **synthesize** the K samples in one compiled, vmapped program (kept on disk by
    :mod:`jaxmotion.compiled`, loaded while stage 3 runs): ``pipeline="auto"`` (the default)
-   runs the object-centric pipeline (:mod:`jaxmotion.pipelines.object_centric`: sensors,
-   root trajectory, body) when the target object is known, else the affordance one (:mod:`jaxmotion.pipelines.affordance`:
-   ADM maps, then AMDM motions; a known target's class mates are kept out of the maps);
+   runs the object-centric pipeline (:mod:`jaxmotion.pipelines.object_centric`: sensors, root
+   trajectory, body) when the target is known, else the affordance one (ADM maps, then AMDM
+   motions: :mod:`jaxmotion.pipelines.affordance`; a known target's class mates kept out);
    ``motion_candidates`` motions per sample, the plausible one reaching the target kept;
    ``pipeline="cvae"``: the HUMANISE baseline (:mod:`jaxmotion.pipelines.cvae`) on the square;
 5. **fit** SMPL-X bodies to the joints (:func:`jaxmotion.body.fit_joints_to_body`); the

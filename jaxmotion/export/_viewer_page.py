@@ -21,8 +21,8 @@ base64 arrays and draws, with no library and no network access:
   the skeleton; the pelvis path and the planned walking paths;
 - labels over the room: the target's and the story's objects ("chair 4 · target",
   "stool 7 · step 2"), and under the pointer the object there with its id and category
-  (its box outlined); labels never cover each other, a panel or a body (a label goes above its object,
-  else under it, else above the bodies, else is left out);
+  (its box outlined); labels never cover each other, a panel or a body (a label goes above
+  its object, else under it, else above the bodies, else is left out);
 - the caption, the target, a story's steps (the current one marked; a click jumps to
   it) and the help in a panel at the top left, the timeline and switches in a bar at the
   bottom, both on opaque backgrounds that nothing is drawn over.

@@ -21,9 +21,9 @@ id="jm-data">`` element, arrays as base64 of little-endian binary, each as
   ``weights [V, 4]`` uint8 (/ 255); ``bones [K, T, J, 12]`` uint16 quantised, the row-major
   3 × 4 linear blend skinning map of every joint (:func:`jaxmotion.render.body.skinning`);
   ``shape_of [K]`` and the samples' ``colours``. The mannequin (at most 4 joints a vertex,
-  no pose correctives) is posed as ``body_forward`` poses it, to within 1 mm; for a user's SMPL-X model, as in ``motion.glb``, the
-  pose-corrective blend shapes are dropped and the weights beyond the 4 strongest folded
-  into them.
+  no pose correctives) is posed as ``body_forward`` poses it, to within 1 mm; for a user's
+  SMPL-X model, as in ``motion.glb``, the pose-corrective blend shapes are dropped and the
+  weights beyond the 4 strongest folded into them.
 - ``segments`` (a story's steps: ``first``, ``last``, ``label``, ``object`` index or −1)
   and ``paths`` (planned ground paths).
 

@@ -89,8 +89,8 @@ def _adm_maps(adm: AdmChooser, crops) -> np.ndarray:
     if adm.programs is not None and adm.blank_text is not None:  # loads while the text encodes
         from jaxmotion.compiled import prefetch, specs_of
 
-        prefetch(*adm.programs[:1], "adm_region", adm.programs[1],
-                 specs_of((*args, tile(adm.blank_text))))
+        folder, fingerprint = adm.programs
+        prefetch(folder, "adm_region", fingerprint, specs_of((*args, tile(adm.blank_text))))
     args = (*args, tile(adm.text() if callable(adm.text) else adm.text))
     sampler = adm.sampler
 

@@ -230,8 +230,8 @@ def ground_candidates(room, text, grounding: str = "auto") -> Candidates:
     ins = text if isinstance(text, Instruction) else read_instruction(text)
     objects = list(object_table(room))
     if not objects:  # an unlabelled scan or mesh: nothing to ground in, the ADM's map chooses
-        note = "the scene has no object labels: the affordance model's map over the room chooses where"
-        return Candidates([], "", (note,))
+        return Candidates([], "", (("the scene has no object labels: the affordance model's "
+                                    "map over the room chooses where"),))
     r, action = ins.reading, ins.action
     notes: list[str] = []
     warns: list[str] = []

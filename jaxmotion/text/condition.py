@@ -145,11 +145,13 @@ def embed_one(text: str, cache_dir: Path | None, text_tokens: int = 0):
 def blank_condition(text_tokens: int = 0, dim: int = 384):
     """A text condition of :func:`embed_one`'s shapes and dtypes for ``text_tokens``, all
     zeros: what a compiled program is looked up by before the sentence is encoded."""
+    from jaxmotion.text import pad_tokens
+
     emb = np.zeros((1, dim), np.float32)
     if not text_tokens:
         return emb
-    return {"pooled": emb, "tokens": np.zeros((1, int(text_tokens), dim), np.float32),
-            "mask": np.zeros((1, int(text_tokens)), bool)}
+    tokens, mask = pad_tokens([np.zeros((0, dim), np.float32)], int(text_tokens), dim)
+    return {"pooled": emb, "tokens": tokens, "mask": mask}
 
 
 def pooled_text(text):

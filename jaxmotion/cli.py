@@ -87,9 +87,15 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     if not args.preview_only:
         settings = SynthSettings(scenes=args.scenes, per_scene=args.per_scene, seed=args.seed,
                                  points_per_scene=args.points, split_scenes=args.split_scenes)
-        manifest = build_dataset(out, settings, workers=args.workers, stats=not args.no_stats)
+        manifest = build_dataset(out, settings, workers=args.workers, stats=not args.no_stats,
+                                 motions=args.motions, motions_fit_iters=args.motions_fit_iters)
         print(f"dataset in {out}: samples {manifest['samples']}, scenes {manifest['scenes']}, "
               f"{manifest['build_seconds_this_run']} s")
+        if args.motions is not None:
+            lib = manifest["motion_library"]
+            print(f"motion library {args.motions}: {lib['files']} files, clips {lib['clips']} "
+                  f"(labels: {lib['labels']}; rejected: {lib['rejected']}); samples "
+                  f"{manifest['samples_by_origin']}")
     if args.preview or args.preview_only:
         paths = render_dataset_previews(out, count=args.preview_count, split=args.preview_split)
         print(f"previews: {len(paths)} PNG files in {out / 'preview'}")
@@ -401,6 +407,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="split only the first S rooms into train / val / test and make every "
                    "later room a training room: more training rooms, the same val and test (run "
                    "on an S-room build's folder, it adds the rooms in place)")
+    p.add_argument("--motions", default=None, metavar="SRC",
+                   help="a folder of real motions (AMASS .npz, .bvh, HumanML3D .npy; labelled "
+                   "by SRC/labels.json, by name, or by their geometry) to use for the walk / "
+                   "sit / stand-up / lie samples where a clip fits the room; the procedural "
+                   "character makes the rest")
+    p.add_argument("--motions-fit-iters", type=int, default=200,
+                   help="SMPL-X fitting iterations for --motions files without SMPL-X "
+                   "parameters (BVH, HumanML3D; 0: the analytic start only)")
     p.add_argument("--no-stats", action="store_true", help="skip the normalisation statistics")
     p.add_argument("--preview", action="store_true", help="also render PNG previews of samples")
     p.add_argument("--preview-only", action="store_true",

@@ -1,6 +1,6 @@
 """Build the synthetic HUMANISE-like dataset: rooms, instructions and motions.
 
-``jaxmotion synth --out DIR --scenes N --per-scene K --seed S --workers W``
+``jaxmotion synth --out DIR --scenes N --per-scene K --seed S --workers W [--motions SRC]``
 
 For scene ``i`` a room is drawn from ``SeedSequence([seed, i])``, sampled to a
 ScanNet-like point cloud and saved as ``scenes/<scene_id>.npz``; then ``K``
@@ -22,11 +22,26 @@ all its sample files exist, so an interrupted build resumes where it stopped by
 running the same command again. ``manifest.json`` (counts, seed, settings,
 version) is written at the end; ``stats.npz`` (normalisation statistics of the
 training crops) after it.
+
+``--motions SRC`` (``build_dataset(..., motions=SRC)``) takes real motions for the
+samples where they fit, the way HUMANISE placed AMASS clips in scanned rooms: ``SRC`` is
+read into a clip library (:mod:`jaxmotion.data.motion_library`, cached in
+``DIR/.motions/``) and, for each drawn instruction, :func:`~jaxmotion.data.clip_placement.
+place_clip` tries clips of its action, in an order drawn from
+``default_rng([seed, i, k, attempt, CLIP_STREAM])``, until one fits the room; when none
+does, the procedural character makes the sample exactly as a build without ``--motions``
+would (same generator). Each sample's origin is recorded in
+``DIR/provenance/<split>/<sample_id>.json`` (written before the sample; the clip's source
+file, frames, rotation and shift), the manifest counts samples from clips and procedural
+fallbacks, and ``settings.motions`` holds the library's content digest, so builds with
+different libraries are never mixed in one folder. Without ``--motions`` nothing of this
+exists and the output is unchanged.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import multiprocessing as mp
 import time
@@ -46,6 +61,7 @@ __all__ = [
 
 FORMAT_VERSION = 1
 _MAX_ATTEMPTS = 30
+CLIP_STREAM = 0x4D07  # the clip-choice generator's extra seed word (see the module docstring)
 
 
 @dataclass(frozen=True)
@@ -59,6 +75,7 @@ class SynthSettings:
     train_fraction: float = 0.8
     val_fraction: float = 0.1
     split_scenes: int | None = None
+    motions: str | None = None  # the motion library's digest (--motions), None: procedural
 
     def __post_init__(self):
         if self.split_scenes is not None and not 3 <= self.split_scenes <= self.scenes:
@@ -74,11 +91,12 @@ class SynthSettings:
 
 
 def _settings_dict(settings: SynthSettings) -> dict:
-    """What manifests record: the fields, ``split_scenes`` only when set (so manifests written
-    before it existed compare equal)."""
+    """What manifests record: the fields, ``split_scenes`` and ``motions`` only when set (so
+    manifests written before they existed compare equal)."""
     d = asdict(settings)
-    if d["split_scenes"] is None:
-        del d["split_scenes"]
+    for key in ("split_scenes", "motions"):
+        if d[key] is None:
+            del d[key]
     return d
 
 
@@ -87,7 +105,7 @@ def _grows(old: dict, new: SynthSettings) -> bool:
     points and fractions, and its ``split_scenes`` equal to the old split's scene count."""
     old_split = old.get("split_scenes") or old.get("scenes")
     same = {k: v for k, v in old.items() if k not in ("scenes", "split_scenes")} == {
-        k: v for k, v in asdict(new).items() if k not in ("scenes", "split_scenes")}
+        k: v for k, v in _settings_dict(new).items() if k not in ("scenes", "split_scenes")}
     return same and new.split_scenes == old_split and new.scenes >= old.get("scenes", 0)
 
 
@@ -116,6 +134,36 @@ def _sample_paths(root: Path, split: str, sid: str, k: int) -> list[Path]:
     return [root / "samples" / split / f"{sid}_{j:02d}.npz" for j in range(k)]
 
 
+def _provenance_path(root: Path, sample: Path) -> Path:
+    return root / "provenance" / sample.parent.name / f"{sample.stem}.json"
+
+
+@functools.lru_cache(maxsize=2)
+def _library(root: str, digest: str):
+    from jaxmotion.data.motion_library import read_library
+
+    return read_library(Path(root) / ".motions" / f"{digest.split(':')[-1]}.npz")
+
+
+def _from_library(root: Path, s: SynthSettings, room, info, rng, path: Path) -> dict | None:
+    """Sample arrays of a placed library clip (its provenance written), or None."""
+    from jaxmotion.data.clip_placement import place_clip
+
+    lib = _library(str(root), s.motions)
+    p = place_clip(lib.clips, info["action"], room.floor_rects, room.objects,
+                   info["target_id"], rng)
+    if p is None:
+        write_json_atomic(_provenance_path(root, path), {"source": "procedural"})
+        return None
+    c = p.clip
+    write_json_atomic(_provenance_path(root, path), {
+        "source": "library", "clip": c.source, "frames": [c.start, c.stop], "label": c.label,
+        "smplx_fitted": c.fitted, "angle": round(p.angle, 9),
+        "shift": [round(float(v), 9) for v in p.shift]})
+    return {"joints": p.joints, "transl": p.transl, "global_orient": p.global_orient,
+            "body_pose": p.body_pose, "betas": p.betas, "fps": 30.0}
+
+
 def _scene_done(root: Path, split: str, sid: str, k: int) -> bool:
     return (root / "scenes" / f"{sid}.npz").is_file() and all(
         p.is_file() for p in _sample_paths(root, split, sid, k)
@@ -139,7 +187,7 @@ def _build_scene(job) -> dict:
     if not scene_path.is_file():
         scene = room_to_scene(room, s.points_per_scene, np.random.default_rng([s.seed, i, 1 << 20]))
         save_scene(dataclasses.replace(scene, name=sid), scene_path)
-    actions, failures = Counter(), 0
+    actions, failures, from_clips = Counter(), 0, 0
     for k, path in enumerate(_sample_paths(root, split, sid, s.per_scene)):
         if path.is_file():
             continue
@@ -147,21 +195,31 @@ def _build_scene(job) -> dict:
             rng = np.random.default_rng([s.seed, i, k, attempt])
             try:
                 text, info = sample_task(room, rng)
-                m = synthesize(info["action"], room.floor_rects, room.objects, info["target_id"], rng)
+                clip = None if s.motions is None else _from_library(
+                    root, s, room, info, np.random.default_rng([s.seed, i, k, attempt,
+                                                                CLIP_STREAM]), path)
+                if clip is None:
+                    m = synthesize(info["action"], room.floor_rects, room.objects,
+                                   info["target_id"], rng)
             except (MotionError, NoUniqueReference):
                 failures += 1
                 continue
             break
         else:
             raise RuntimeError(f"{sid}: no motion could be made for sample {k} in {_MAX_ATTEMPTS} tries")
-        t = m.joints.shape[0]
+        if clip is None:
+            clip = {"joints": m.joints, "transl": m.transl, "global_orient": m.global_orient,
+                    "body_pose": m.body_pose, "betas": m.betas, "fps": float(m.fps)}
+        else:
+            from_clips += 1
+        t = clip["joints"].shape[0]
         save_sample(path, dict(
             text=text, action=info["action"], scene_id=sid, target_id=info["target_id"],
-            joints=m.joints, fps=float(m.fps), mask=np.ones(t, bool), transl=m.transl,
-            global_orient=m.global_orient, body_pose=m.body_pose, betas=m.betas,
+            mask=np.ones(t, bool), **clip,
         ))  # fmt: skip
         actions[info["action"]] += 1
-    return {"scene": sid, "skipped": False, "actions": dict(actions), "failures": failures}
+    return {"scene": sid, "skipped": False, "actions": dict(actions), "failures": failures,
+            "from_clips": from_clips}
 
 
 def _check_existing(root: Path, settings: SynthSettings):
@@ -184,14 +242,42 @@ def _check_existing(root: Path, settings: SynthSettings):
         )
 
 
+def _count_sources(root: Path) -> dict:
+    """Samples on disk by origin (their provenance records): library clips, procedural."""
+    n = Counter()
+    for f in (root / "provenance").glob("*/*.json"):
+        if (root / "samples" / f.parent.name / f"{f.stem}.npz").is_file():
+            n[json.loads(f.read_text())["source"]] += 1
+    return {"library_clips": n["library"], "procedural_fallback": n["procedural"]}
+
+
 def build_dataset(out, settings: SynthSettings, *, workers: int = 1, progress: bool = True,
-                  stats: bool = True) -> dict:
-    """Build (or resume) a dataset in ``out``; returns the manifest dict."""
+                  stats: bool = True, motions=None, motions_fit_iters: int = 200) -> dict:
+    """Build (or resume) a dataset in ``out``; returns the manifest dict.
+
+    ``motions``: a folder of real motions to use where they fit (see the module docstring
+    and :mod:`jaxmotion.data.motion_library`); ``motions_fit_iters``: SMPL-X fitting
+    iterations for its joint-only files. Sets ``settings.motions`` to the library digest.
+    """
     from tqdm.auto import tqdm
 
     if settings.scenes < 1 or settings.per_scene < 1:
         raise ValueError("--scenes and --per-scene must be at least 1")
     root = Path(out)
+    library = None
+    if motions is not None:  # check the folder before any work (and any folder is made)
+        from jaxmotion.data.motion_library import library_digest, load_library
+
+        digest = library_digest(motions, motions_fit_iters)
+        if settings.motions not in (None, digest):
+            raise DatasetError(f"settings.motions {settings.motions} is not the digest of "
+                               f"--motions {motions} ({digest})")
+        settings = dataclasses.replace(settings, motions=digest)
+        _check_existing(root, settings)
+        library = load_library(motions, cache_dir=root / ".motions", digest=digest,
+                               fit_iters=motions_fit_iters, progress=progress)
+    elif settings.motions is not None:
+        raise ValueError("settings.motions is set: give the motion folder as motions=")
     (root / "scenes").mkdir(parents=True, exist_ok=True)
     _check_existing(root, settings)
     write_json_atomic(root / ".synth_settings.json", _settings_dict(settings))
@@ -221,13 +307,20 @@ def build_dataset(out, settings: SynthSettings, *, workers: int = 1, progress: b
     manifest = {
         "format_version": FORMAT_VERSION,
         "jaxmotion_version": __version__,
-        "kind": "synthetic (jaxmotion built-in world; not HUMANISE)",
+        "kind": "synthetic (jaxmotion built-in world; not HUMANISE)" if library is None else
+                "synthetic rooms (jaxmotion built-in world; not HUMANISE) with real motion clips "
+                "where they fit (the user's own motions: mind their licence)",
         "settings": _settings_dict(settings),
         "seed": settings.seed,
         "scenes": {sp: splits.count(sp) for sp in ("train", "val", "test")},
         "samples": counts,
         "actions_built_this_run": dict(actions),
         "retries_this_run": int(sum(r["failures"] for r in results)),
+        **({} if library is None else {
+            "motion_library": {**library.report, "digest": library.digest},
+            "samples_by_origin": _count_sources(root),
+            "samples_from_clips_this_run": int(sum(r.get("from_clips", 0) for r in results)),
+        }),
         "build_seconds_this_run": round(elapsed, 1),
         "fps": 30,
     }

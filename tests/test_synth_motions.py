@@ -1,0 +1,209 @@
+"""``jaxmotion synth --motions``: real clips placed in the synthetic rooms, fallbacks counted.
+
+The motion library is made here from the procedural character itself, written as
+AMASS-style ``.npz`` files (SMPL-X parameters, 30 fps), so nothing licensed is needed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from jaxmotion.cli import main
+from jaxmotion.data.clip_placement import heading, transform_clip
+from jaxmotion.data.format import DatasetError, load_sample
+from jaxmotion.data.motion_library import action_windows, label_from_name, load_library
+from jaxmotion.data.synth import SynthSettings, build_dataset
+from jaxmotion.io import smplx_joints_host
+
+SETTINGS = SynthSettings(scenes=2, per_scene=3, seed=3, points_per_scene=2000)
+
+
+def _procedural(action: str, i: int):
+    from jaxmotion.motion import MotionError, synthesize
+    from jaxmotion.scene.instructions import sample_task
+    from jaxmotion.scene.rooms import sample_room
+
+    for j in range(i, i + 40):
+        room = sample_room(np.random.default_rng([100 + j]),
+                           kind="bedroom" if action == "lie" else None)
+        rng = np.random.default_rng([j, 5])
+        try:
+            _, info = sample_task(room, rng, action=action)
+            return synthesize(action, room.floor_rects, room.objects, info["target_id"], rng)
+        except (MotionError, ValueError):
+            continue
+    raise AssertionError(f"no procedural {action}")
+
+
+def _write_amass(path: Path, m) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, root_orient=m.global_orient, pose_body=m.body_pose.reshape(-1, 63),
+             trans=m.transl, betas=m.betas, mocap_frame_rate=np.array(30.0))
+
+
+@pytest.fixture(scope="module")
+def motions(tmp_path_factory) -> dict:
+    """Two procedural clips per action, as motions a user could have."""
+    return {a: [_procedural(a, 10 * k) for k in range(2)]
+            for a in ("walk", "sit", "stand_up", "lie")}
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory, motions) -> Path:
+    """Named by action (folders and file names), one left for the geometry to label."""
+    src = tmp_path_factory.mktemp("library")
+    for a, ms in motions.items():
+        _write_amass(src / a / f"take_{a}_0.npz", ms[0])
+        _write_amass(src / "misc" / f"take{a}1.npz", ms[1])  # no action word in the name
+    return src
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory, library) -> tuple[Path, dict]:
+    out = tmp_path_factory.mktemp("built") / "ds"
+    return out, build_dataset(out, SETTINGS, progress=False, stats=False, motions=library)
+
+
+def _tree(root: Path) -> dict:
+    return {p.relative_to(root).as_posix(): hashlib.sha1(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file() and p.name != "manifest.json"}
+
+
+def test_names_and_geometry_label_the_clips(library, motions):
+    assert label_from_name("sit/chair_03.bvh") == "sit"
+    assert label_from_name("07_lie_bed.npz") == "lie"
+    assert label_from_name("x/stand_up_2.npz") == "stand_up"
+    assert label_from_name("sit_to_stand_up.npz") is None  # ambiguous: the geometry decides
+    assert label_from_name("misc/take1.npz") is None
+    for a, ms in motions.items():  # the procedural clips show their action
+        assert a in action_windows(ms[0].joints)
+    lib = load_library(library)
+    assert lib.counts()["sit"] >= 2 and lib.counts()["stand_up"] >= 2 and lib.counts()["lie"] >= 2
+    assert lib.counts()["walk"] >= 1
+    assert lib.report["labels"]["name"] >= 4 and lib.report["labels"]["geometry"] >= 4
+
+
+def test_samples_are_placed_library_clips(built, library):
+    out, manifest = built
+    origin = manifest["samples_by_origin"]
+    n = sum(manifest["samples"].values())
+    assert n == SETTINGS.scenes * SETTINGS.per_scene
+    assert origin["library_clips"] + origin["procedural_fallback"] == n
+    assert origin["library_clips"] >= 1
+    assert manifest["settings"]["motions"].startswith("sha1:")
+    assert manifest["motion_library"]["path"] == str(library)
+    lib = load_library(library)
+    for f in sorted((out / "provenance").glob("*/*.json")):
+        pv = json.loads(f.read_text())
+        s = load_sample(out / "samples" / f.parent.name / f"{f.stem}.npz")
+        if pv["source"] != "library":
+            continue
+        clip = next(c for c in lib.clips if c.source == pv["clip"] and c.action == s["action"]
+                    and [c.start, c.stop] == pv["frames"])
+        p = transform_clip(clip, pv["angle"], pv["shift"])
+        np.testing.assert_allclose(s["joints"], p.joints, atol=1e-5)
+        assert pv["shift"][2] == 0.0  # only turned and moved over the floor
+        # the SMPL-X parameters moved with the joints
+        fk = smplx_joints_host(s["global_orient"], s["body_pose"], s["transl"], s["betas"])
+        np.testing.assert_allclose(fk, s["joints"], atol=1e-4)
+        # pelvis path shape kept: distances between frames are the clip's
+        np.testing.assert_allclose(np.diff(s["joints"][:, 0], axis=0),
+                                   np.diff(clip.joints[:, 0], axis=0) @ _rz(pv["angle"]).T,
+                                   atol=1e-5)
+
+
+def _rz(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def test_transform_turns_heading():
+    from jaxmotion.motion.kinematics import upright
+
+    j = np.zeros((1, 22, 3))
+    j[0, 1], j[0, 2] = [0.0, 0.1, 0.9], [0.0, -0.1, 0.9]  # left hip +y: facing +x
+    assert heading(j[0]) == pytest.approx(0.0)
+    assert np.allclose(upright(0.0)[:, 2], [1, 0, 0])  # the rest body faces +x when upright
+
+
+def test_same_seed_same_files_and_resume(built, library, tmp_path):
+    out, _ = built
+    again = tmp_path / "again"
+    build_dataset(again, SETTINGS, progress=False, stats=False, motions=library)
+    assert _tree(again) == _tree(out)
+    victim = min((again / "samples").rglob("*.npz"))
+    victim.unlink()
+    build_dataset(again, SETTINGS, progress=False, stats=False, motions=library)
+    assert _tree(again) == _tree(out)
+
+
+def test_fallback_is_the_procedural_sample(tmp_path, motions):
+    """A library of walks only: every other sample falls back to the procedural character,
+    byte for byte the sample of a build without --motions."""
+    src = tmp_path / "walks"
+    for k, m in enumerate(motions["walk"]):
+        _write_amass(src / f"walk_{k}.npz", m)
+    plain = tmp_path / "plain"
+    build_dataset(plain, SETTINGS, progress=False, stats=False)
+    out = tmp_path / "mixed"
+    manifest = build_dataset(out, SETTINGS, progress=False, stats=False, motions=src)
+    assert manifest["motion_library"]["clips"] == {"walk": 2, "sit": 0, "stand_up": 0, "lie": 0}
+    assert not (plain / "provenance").exists() and "motions" not in json.loads(
+        (plain / "manifest.json").read_text())["settings"]
+    fallback = 0
+    for f in sorted((out / "provenance").glob("*/*.json")):
+        sample = Path("samples") / f.parent.name / f"{f.stem}.npz"
+        if json.loads(f.read_text())["source"] == "procedural":
+            fallback += 1
+            assert (out / sample).read_bytes() == (plain / sample).read_bytes()
+        else:
+            assert load_sample(out / sample)["action"] == "walk"
+    assert fallback == manifest["samples_by_origin"]["procedural_fallback"] >= 1
+    # another library in the same folder is refused
+    _write_amass(tmp_path / "one_walk" / "walk_0.npz", motions["walk"][0])
+    with pytest.raises(DatasetError, match="built with"):
+        build_dataset(out, SETTINGS, progress=False, stats=False, motions=tmp_path / "one_walk")
+
+
+def test_clear_errors(tmp_path, capsys):
+    out = tmp_path / "out"
+    with pytest.raises(DatasetError, match="no such folder"):
+        build_dataset(out, SETTINGS, progress=False, motions=tmp_path / "missing")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DatasetError, match="no motion files"):
+        build_dataset(out, SETTINGS, progress=False, motions=tmp_path / "empty")
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "x.npz").write_bytes(b"not a zip")
+    with pytest.raises(DatasetError, match="could be read"):
+        build_dataset(out, SETTINGS, progress=False, motions=bad)
+    still = tmp_path / "still"  # a person standing still: no action in it
+    t = 40
+    idle = SimpleNamespace(global_orient=np.tile([[np.pi / 2, 0.0, 0.0]], (t, 1)),
+                           body_pose=np.zeros((t, 21, 3)), transl=np.zeros((t, 3)),
+                           betas=np.zeros(10))
+    _write_amass(still / "idle.npz", idle)
+    with pytest.raises(DatasetError, match="no clip of walk, sit, stand_up or lie"):
+        build_dataset(out, SETTINGS, progress=False, motions=still)
+    assert not out.exists()  # refused before any work
+    code = main(["synth", "--out", str(out), "--scenes", "2", "--motions",
+                 str(tmp_path / "missing")])
+    assert code == 2 and "--motions" in capsys.readouterr().err
+
+
+def test_labels_file_overrides_names(tmp_path, motions):
+    src = tmp_path / "lib"
+    _write_amass(src / "sit_0.npz", motions["sit"][0])
+    _write_amass(src / "sit_1.npz", motions["sit"][1])
+    (src / "labels.json").write_text(json.dumps({"sit_0.npz": "walk", "sit_1.npz": None}))
+    with pytest.raises(DatasetError, match="no clip"):
+        load_library(src)
+    (src / "labels.json").write_text(json.dumps({"sit_0.npz": "sit"}))
+    lib = load_library(src)
+    assert lib.counts()["sit"] == 2 and lib.report["labels"] == {"file": 1, "name": 1}

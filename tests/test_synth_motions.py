@@ -207,3 +207,24 @@ def test_labels_file_overrides_names(tmp_path, motions):
     (src / "labels.json").write_text(json.dumps({"sit_0.npz": "sit"}))
     lib = load_library(src)
     assert lib.counts()["sit"] == 2 and lib.report["labels"] == {"file": 1, "name": 1}
+
+
+@pytest.mark.slow
+def test_joint_only_files_get_fitted_smplx(tmp_path, motions):
+    """A BVH library (joints only): SMPL-X parameters are fitted (analytic start, fit_iters=0),
+    the samples keep the file's joints."""
+    from jaxmotion.export import write_bvh
+
+    src = tmp_path / "bvh"
+    src.mkdir()
+    for a in ("sit", "stand_up"):
+        for k, m in enumerate(motions[a]):
+            write_bvh(src / f"{a}_{k}.bvh", m.global_orient, m.body_pose, m.transl, m.betas, 30.0)
+    out = tmp_path / "ds"
+    manifest = build_dataset(out, SETTINGS, progress=False, stats=False, motions=src,
+                             motions_fit_iters=0)
+    lib = manifest["motion_library"]
+    assert lib["fitted_clips"] == 4 and lib["smplx_fit_error_m"] < 0.08
+    assert manifest["samples_by_origin"]["library_clips"] >= 1
+    used = [json.loads(f.read_text()) for f in (out / "provenance").glob("*/*.json")]
+    assert all(u["smplx_fitted"] for u in used if u["source"] == "library")

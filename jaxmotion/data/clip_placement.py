@@ -45,6 +45,9 @@ LIE_TOLERANCE = 0.08  # lying pelvis height vs the bed's, metres
 CLEARANCE = 0.2  # pelvis to furniture and walls while walking, metres
 END_CLEARANCE = 0.05  # ... near the object (within 0.6 m of the anchor pelvis)
 TRIES = 8  # clips tried per sample
+_PELVIS_OVER_SURFACE = {"sit": (0.15 - SEAT_TOLERANCE, 0.2 + SEAT_TOLERANCE),
+                        "stand_up": (0.15 - SEAT_TOLERANCE, 0.2 + SEAT_TOLERANCE),
+                        "lie": (0.09 - LIE_TOLERANCE, 0.13 + LIE_TOLERANCE)}
 
 
 @dataclass(frozen=True)
@@ -170,12 +173,21 @@ def place_clip(clips, action: str, floor_rects, objects, target_id,
                rng: np.random.Generator, *, tries: int = TRIES) -> Placed | None:
     """The first of up to ``tries`` clips of ``action`` (in an order drawn from ``rng``) that
     fits the room for ``target_id``, placed (see the module docstring); None if none fits
-    or the target does not afford the action."""
-    clips = [c for c in clips if c.action == action]
+    or the target does not afford the action. For sit / stand_up / lie only clips whose
+    anchor pelvis is a plausible height over the target's surface are drawn."""
     by_id = {o["id"]: o for o in objects}
-    if not clips or target_id not in by_id:
+    if target_id not in by_id:
         return None
     target = by_id[target_id]
+    clips = [c for c in clips if c.action == action]
+    if action != "walk" and target.get("surface_height") is not None:
+        # only clips whose seated / lying pelvis could be on this surface (a seated pelvis is
+        # 15-20 cm over the seat, a lying one 9-13 cm): a large library keeps its hit rate
+        lo, hi = _PELVIS_OVER_SURFACE[action]
+        h = float(target["surface_height"])
+        clips = [c for c in clips if lo <= float(c.joints[c.anchor, 0, 2]) - h <= hi]
+    if not clips:
+        return None
     world = (np.asarray(floor_rects, float).reshape(-1, 4), list(objects))
     grid = build_grid(world[0], world[1])
     grid_wo = build_grid(world[0], world[1], exclude=(target_id,))

@@ -10,6 +10,8 @@ Layout of a dataset directory ``DIR``::
                                            transl [T,3], global_orient [T,3],
                                            body_pose [T,21,3], betas [10]
     DIR/stats.npz                          normalisation statistics (see loader)
+    DIR/provenance/<split>/<sample_id>.json  only ``jaxmotion synth --motions``: the
+                                           sample's origin (a library clip or procedural)
 
 Scenes use :func:`jaxmotion.scene.save_scene` / ``load_scene``. Samples are
 written atomically (temp file + ``os.replace``) so an interrupted build never

@@ -135,8 +135,7 @@ def library_files(src) -> list[Path]:
     if not files:
         raise DatasetError(
             f"--motions {src}: no motion files (.npz AMASS, .bvh, .npy HumanML3D) in this "
-            "folder or below it; put your motions there (see docs/humanml3d.md, 'Real "
-            "motions in the synthetic world')")
+            "folder or below it; put your motions there (README, 'Your own data')")
     return files
 
 

@@ -86,7 +86,8 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if not args.preview_only:
         settings = SynthSettings(scenes=args.scenes, per_scene=args.per_scene, seed=args.seed,
-                                 points_per_scene=args.points, split_scenes=args.split_scenes)
+                                 points_per_scene=args.points, split_scenes=args.split_scenes,
+                                 phrasing=args.phrasing)
         manifest = build_dataset(out, settings, workers=args.workers, stats=not args.no_stats,
                                  motions=args.motions, motions_fit_iters=args.motions_fit_iters)
         print(f"dataset in {out}: samples {manifest['samples']}, scenes {manifest['scenes']}, "
@@ -407,6 +408,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="split only the first S rooms into train / val / test and make every "
                    "later room a training room: more training rooms, the same val and test (run "
                    "on an S-room build's folder, it adds the rooms in place)")
+    p.add_argument("--phrasing", choices=("default", "rich"), default="default",
+                   help="instruction phrasing: 'default' (the grammar the shipped checkpoints "
+                   "were trained on) or 'rich' (many more verb phrases, relation phrasings, "
+                   "object words, polite and two-clause forms; one action on one object)")
     p.add_argument("--motions", default=None, metavar="SRC",
                    help="a folder of real motions (AMASS .npz, .bvh, HumanML3D .npy; labelled "
                    "by SRC/labels.json, by name, or by their geometry) to use for the walk / "

@@ -36,6 +36,13 @@ file, frames, rotation and shift), the manifest counts samples from clips and pr
 fallbacks, and ``settings.motions`` holds the library's content digest, so builds with
 different libraries are never mixed in one folder. Without ``--motions`` nothing of this
 exists and the output is unchanged.
+
+``--phrasing rich`` (``SynthSettings.phrasing``) draws the instructions from the rich
+phrasing space (``sample_task(..., phrasing="rich")``,
+:func:`jaxmotion.scene.instructions.sample_rich_instruction`): the same rooms, and the same
+kind of targets, with far more verb phrases, relation phrasings and object words. Without it
+the texts are the default grammar's, byte for byte the ones the shipped checkpoints were
+trained on; the manifest records ``phrasing`` only when it is not ``"default"``.
 """
 
 from __future__ import annotations
@@ -76,8 +83,13 @@ class SynthSettings:
     val_fraction: float = 0.1
     split_scenes: int | None = None
     motions: str | None = None  # the motion library's digest (--motions), None: procedural
+    phrasing: str = "default"  # instruction phrasing (--phrasing): "default" or "rich"
 
     def __post_init__(self):
+        from jaxmotion.scene.instructions import PHRASINGS
+
+        if self.phrasing not in PHRASINGS:
+            raise ValueError(f"phrasing={self.phrasing!r}: choose from {PHRASINGS}")
         if self.split_scenes is not None and not 3 <= self.split_scenes <= self.scenes:
             raise ValueError(
                 f"split_scenes={self.split_scenes} must be between 3 and scenes={self.scenes}: "
@@ -91,12 +103,15 @@ class SynthSettings:
 
 
 def _settings_dict(settings: SynthSettings) -> dict:
-    """What manifests record: the fields, ``split_scenes`` and ``motions`` only when set (so
-    manifests written before they existed compare equal)."""
+    """What manifests record: the fields, ``split_scenes`` and ``motions`` only when set and
+    ``phrasing`` only when not ``"default"`` (so manifests written before they existed
+    compare equal)."""
     d = asdict(settings)
     for key in ("split_scenes", "motions"):
         if d[key] is None:
             del d[key]
+    if d["phrasing"] == "default":
+        del d["phrasing"]
     return d
 
 
@@ -194,7 +209,7 @@ def _build_scene(job) -> dict:
         for attempt in range(_MAX_ATTEMPTS):
             rng = np.random.default_rng([s.seed, i, k, attempt])
             try:
-                text, info = sample_task(room, rng)
+                text, info = sample_task(room, rng, phrasing=s.phrasing)
                 clip = None if s.motions is None else _from_library(
                     root, s, room, info, np.random.default_rng([s.seed, i, k, attempt,
                                                                 CLIP_STREAM]), path)

@@ -4,7 +4,8 @@
 the style of people saying what they want ("Plonk yourself on the stool next to the sofa",
 "Go raid the fridge", "Sit at the desk, please"), for objects of the rooms of
 ``jaxmotion synth --seed 9001`` (``data/unseen9001``, rooms no training used). None uses a verb
-phrase of the synthetic generator (:data:`jaxmotion.scene.instructions.VERBS`), so the set
+phrase of the synthetic generator (:data:`jaxmotion.scene.instructions.VERBS`, nor a verb core
+of its rich phrasing, :mod:`jaxmotion.scene.rich_phrasing`), so the set
 measures how the instruction reader and the models do on phrasing they were not built from
 (the affordance paper's Table 4 protocol: people's descriptions, unseen scenes).
 

@@ -327,12 +327,15 @@ def _by_preposition(out: dict, raw, target, chosen, notes) -> None:
 
 def _negated(lem, start: int) -> bool:
     """Whether the verb at ``start`` is negated: "not" / "never" / "without" / "instead of"
-    / "rather than" right before it ("don't sit", "do not ever lie", "rather than sitting")."""
+    / "rather than" right before it ("don't sit", "do not ever lie", "rather than sitting");
+    not the suggestion "why don't you sit", "why not sit"."""
     k = start - 1
     while k >= 0 and lem[k] in ("do", "just", "even", "really", "ever", "to", "you", "please"):
         k -= 1
     if k < 0:
         return False
+    if lem[k] == "not" and "why" in (lem[k - 1:k] + lem[k - 2:k - 1]):
+        return False  # "why not sit", "why do not you sit" (why don't you)
     return lem[k] in ("not", "never", "dont", "without") or lem[k - 1:k + 1] in (
         ["instead", "of"], ["rather", "than"])
 
@@ -395,6 +398,8 @@ def _target_fields(raw, lem, free, target, mentions, verbs, breaks, notes, actio
         else:
             notes.append(f"'{raw[s - 1]} {' '.join(raw[s:e])}' names nothing to be "
                          f"{raw[s - 1]} to; every {cls} is a candidate")
+    for r0, r1, _ in rels:  # "right" of "right next to" is no unsupported "right"
+        window[r0:r1] = [False] * (r1 - r0)
     for r0, r1, _ in spans(lem, indexes()["unsupported"], window):
         if e <= r0 < stop:
             notes.append(f"'{' '.join(raw[r0:r1])}' is not a relation the scene graph has "

@@ -10,6 +10,14 @@ a generated text back into (action, :class:`Reference`).
 
 Targets: ``sit`` / ``stand_up`` take seats (chair, armchair, sofa, stool, toilet, bed edge),
 ``lie`` a bed or sofa, ``walk`` any object.
+
+``phrasing="rich"`` (:func:`sample_rich_instruction`, word lists in
+:mod:`jaxmotion.scene.rich_phrasing`) composes the same references from a far larger space:
+polite and filler frames, adverbs, purpose clauses, two-clause forms on the one target,
+more relation words and object synonyms, and "have a seat at the desk" for the seat at it
+(:func:`phrasing_space` counts it). Its texts are read by the free-phrasing reader
+(:mod:`jaxmotion.grounding`), not by :func:`parse_instruction`. The default phrasing is
+unchanged: the same texts for a seed as before the option existed.
 """
 
 from __future__ import annotations
@@ -19,6 +27,7 @@ import re
 
 import numpy as np
 
+from jaxmotion.scene import rich_phrasing as rp
 from jaxmotion.scene.furniture import BUILDERS, LIE_CATEGORIES, SEAT_CATEGORIES
 from jaxmotion.scene.graph import Reference, SceneGraph, as_scene_graph
 
@@ -26,6 +35,8 @@ ACTIONS = ("walk", "sit", "stand_up", "lie")
 ACTION_TARGETS = {"walk": None, "sit": SEAT_CATEGORIES, "stand_up": SEAT_CATEGORIES,
                   "lie": LIE_CATEGORIES}
 NEAR = 1.0  # "next to" / "right by" only within this xy box distance (m)
+SEAT_AT_NEAR = 0.5  # "sit at the desk" only for a seat within this xy box distance (m)
+PHRASINGS = ("default", "rich")  # sample_task(phrasing=...)
 VERBS = {
     "walk": ("walk to", "go to", "go over to", "walk over to", "head to", "head over to",
              "move to", "approach", "walk up to", "make your way to", "step over to",
@@ -124,7 +135,7 @@ def referring_options(graph_or_room, target_id: int) -> dict:
 
 
 def sample_instruction(room, action: str, target_id: int, rng, *, graph=None,
-                       plain_prob: float = 0.6) -> tuple[str, dict]:
+                       plain_prob: float = 0.6, phrasing: str = "default") -> tuple[str, dict]:
     """A random instruction for ``action`` on object ``target_id``: (text, info).
 
     ``info``: action, target_id, target_class, relation (None for "the <class>"),
@@ -132,13 +143,18 @@ def sample_instruction(room, action: str, target_id: int, rng, *, graph=None,
     counts). A lone object of its class is named plainly with probability ``plain_prob``,
     else (and always for a class with several instances) through a relation type drawn
     uniformly among those that single it out. ``rng``: numpy Generator or int seed.
-    Raises ValueError for a target the action cannot take, NoUniqueReference when no
-    expression singles the target out.
+    ``phrasing``: ``"default"`` (the grammar the shipped checkpoints were trained on) or
+    ``"rich"`` (:func:`sample_rich_instruction`). Raises ValueError for a target the action
+    cannot take, NoUniqueReference when no expression singles the target out.
     """
     g, rng = (graph if graph is not None else as_scene_graph(room)), _rng(rng)
     cat = g.category(target_id)
     if target_id not in targets_for(g, action):
         raise ValueError(f"{action!r} cannot target {g.name(target_id)}")
+    if phrasing != "default":
+        if phrasing not in PHRASINGS:
+            raise ValueError(f"unknown phrasing {phrasing!r}; choose from {PHRASINGS}")
+        return sample_rich_instruction(g, action, target_id, rng, plain_prob=plain_prob)
     opts = referring_options(g, target_id)
     if not opts:
         raise NoUniqueReference(f"nothing singles out {g.name(target_id)} in its room")
@@ -173,10 +189,200 @@ def sample_instruction(room, action: str, target_id: int, rng, *, graph=None,
     return text, info
 
 
+# --------------------------------------------------------------------------- rich phrasing
+def _cores(action: str) -> tuple[str, ...]:
+    """The rich space's verb cores of ``action``: the default's, then the added ones."""
+    return tuple(dict.fromkeys((*VERBS[action], *rp.EXTRA_VERBS[action])))
+
+
+def _verb_phrase(frame: str, adverb: str, core: str, suffix: str) -> str | None:
+    """A frame filled with "<adverb><core> {x}<suffix>" ({x}: the referring expression), or
+    None for a combination the rich space leaves out: "go ahead and go to", two adverbs
+    ("slowly walk to ... quickly"), a condition suffix in a frame that ends after it or
+    starts with one ("when you're ready, ... right away", "... if you can for me")."""
+    if frame.startswith("go ahead and") and core.startswith("go "):
+        return None
+    if adverb and suffix in rp.SUFFIX_ADVERBS:
+        return None
+    if suffix in rp.SUFFIX_CONDITIONS and (frame.rstrip("?")[-3:] != "{v}" or frame.startswith(
+            ("if ", "when "))):
+        return None
+    return frame.replace("{v}", f"{adverb}{core} {{x}}{suffix}")
+
+
+def rich_templates() -> dict:
+    """{pool: expression templates} of the rich space ({t} target, {a} / {b} anchors;
+    pools as :data:`TEMPLATES`, ``near`` being ``closest`` within :data:`NEAR`)."""
+    out: dict = {None: ("the {t}",)}
+    for pool, words in rp.RELATION_WORDS.items():
+        tail = " the {a} and the {b}" if pool == "between" else " the {a}"
+        forms = []
+        for w in words:
+            word, participle = (w, False) if isinstance(w, str) else w
+            for conn in rp.RELATION_CONNECTORS[:4] if participle else rp.RELATION_CONNECTORS:
+                forms.append(f"the {{t}} {conn}{word}{tail}")
+        forms += rp.SUPERLATIVE_TEMPLATES.get(pool, ())
+        out[pool] = tuple(dict.fromkeys(forms))
+    out["supporting"] = tuple(f"the {{t}} {s}" for s in rp.SUPPORTING_TEMPLATES)
+    return out
+
+
+def _rich_word(category, rng):
+    words = rp.RICH_WORDS.get(category) or WORDS.get(category) or (category,)
+    return words[0] if len(words) == 1 or rng.random() < 0.5 else words[rng.integers(len(words))]
+
+
+def seat_at_anchors(graph_or_room, action: str, target_id: int) -> list[int]:
+    """Ids of the objects ``target_id`` is "the seat at" for ``action`` (sit / stand_up):
+    a desk, table or coffee table alone of its class in the room, whose nearest seat
+    (beds left out when the room has another seat; ties within the graph's ``tie_tol``) is
+    the target alone, within :data:`SEAT_AT_NEAR`; the target is not a bed. This is how the
+    free-phrasing reader takes "sit at the desk"."""
+    g = as_scene_graph(graph_or_room)
+    if action not in ("sit", "stand_up") or g.category(target_id) == "bed":
+        return []
+    out = []
+    for cat in rp.SEAT_AT_ANCHORS:
+        if g.count(cat) != 1:
+            continue
+        a = g.instances(cat)[0]
+        seats = [i for i in g.ids if g.category(i) in SEAT_CATEGORIES and i != a]
+        if any(g.category(i) != "bed" for i in seats):
+            seats = [i for i in seats if g.category(i) != "bed"]
+        d = {i: g.distance(i, a) for i in seats}
+        best = min(d.values(), default=np.inf)
+        tied = [i for i, v in d.items() if v <= best + g.tie_tol]
+        if tied == [target_id] and best <= SEAT_AT_NEAR:
+            out.append(a)
+    return out
+
+
+def sample_rich_instruction(room, action: str, target_id: int, rng, *, graph=None,
+                            plain_prob: float = 0.6, seat_at_prob: float = 0.5,
+                            multi_prob: float = 0.12) -> tuple[str, dict]:
+    """A random instruction in the rich phrasing space (:mod:`jaxmotion.scene.rich_phrasing`)
+    for ``action`` on ``target_id``: (text, info) as :func:`sample_instruction`.
+
+    The referring expression is drawn as the default's (same relations, the same
+    ``plain_prob``, "next to"-like words only within :data:`NEAR`) from
+    :func:`rich_templates` with the rich object words; with probability ``seat_at_prob``,
+    when the target is the seat at a desk or table (:func:`seat_at_anchors`), sitting and
+    getting up name that instead ("have a seat at the desk", relation ``"at"``). With
+    probability ``multi_prob`` the sentence is a two-clause form on the one target
+    (:data:`~jaxmotion.scene.rich_phrasing.MULTI_CLAUSE`), else a frame around an adverb,
+    the verb core, the expression and a suffix. ``info["template"]`` names the parts.
+    """
+    g, rng = (graph if graph is not None else as_scene_graph(room)), _rng(rng)
+    cat = g.category(target_id)
+    if target_id not in targets_for(g, action):
+        raise ValueError(f"{action!r} cannot target {g.name(target_id)}")
+    opts = referring_options(g, target_id)
+    at = seat_at_anchors(g, action, target_id)
+    if not opts and not at:
+        raise NoUniqueReference(f"nothing singles out {g.name(target_id)} in its room")
+    if at and (not opts or rng.random() < seat_at_prob):
+        a = at[rng.integers(len(at))]
+        core = rp.SEAT_AT_VERBS[action][rng.integers(len(rp.SEAT_AT_VERBS[action]))]
+        expr = f"the {_rich_word(g.category(a), rng)}"
+        rel, anchors, anchor_ids, pool, ti, form = "at", (g.category(a),), (a,), "at", 0, "frame"
+    else:
+        rels = [r for r in opts if r is not None]
+        if None in opts and (not rels or rng.random() < plain_prob):
+            rel = None
+        else:
+            rel = rels[rng.integers(len(rels))]
+        ref = opts[rel][rng.integers(len(opts[rel]))]
+        anchors, anchor_ids = tuple(ref.anchors), tuple(g.instances(c)[0] for c in ref.anchors)
+        pool = rel
+        if rel == "closest" and g.distance(target_id, anchor_ids[0]) <= NEAR and (
+                rng.random() < 0.5):
+            pool = "near"
+        templates = rich_templates()[pool]
+        ti = int(rng.integers(len(templates)))
+        words = [_rich_word(c, rng) for c in (cat, *anchors)]
+        expr = templates[ti].format(t=words[0], a=(words[1:2] or [""])[0],
+                                    b=(words[2:3] or [""])[0])
+        if cat == "bed" and action in ("sit", "stand_up") and rng.random() < 0.5:
+            expr = ("the edge of " if rng.random() < 0.6 else "the side of ") + expr
+        cores = [c for c in _cores(action) if cat == "armchair" or c not in rp.IN_ONLY]
+        core = cores[rng.integers(len(cores))]
+        form = "multi" if rng.random() < multi_prob else "frame"
+    if form == "multi":
+        forms = rp.MULTI_CLAUSE[action]
+        fi = int(rng.integers(len(forms)))
+        text = forms[fi].replace("{e}", expr).replace("{E}", expr).replace("{c}", core)
+        text = re.sub(r"([.?] )([a-z])", lambda m: m.group(1) + m.group(2).upper(), text)
+        parts = f"multi:{fi}"
+    else:
+        fi = int(rng.integers(len(rp.FRAMES)))
+        if _verb_phrase(rp.FRAMES[fi], "", core, "") is None:  # "go ahead and go to"
+            fi = 0
+        adverb = rp.PREFIX_ADVERBS[rng.integers(len(rp.PREFIX_ADVERBS))]
+        suffixes = [x for x in rp.SUFFIXES[action]
+                    if _verb_phrase(rp.FRAMES[fi], adverb, core, x) is not None]
+        suffix = suffixes[rng.integers(len(suffixes))]
+        text = _verb_phrase(rp.FRAMES[fi], adverb, core, suffix).replace("{x}", expr)
+        parts = f"frame:{fi}|{adverb.strip()}|{suffix.strip()}"
+    if text.startswith(("i ", "i'")) or rng.random() < 0.5:
+        text = text[0].upper() + text[1:]
+    if not text.endswith("?") and rng.random() < 0.5:
+        text += "."
+    info = {"action": action, "target_id": int(target_id), "target_class": cat,
+            "relation": rel, "anchor_classes": anchors,
+            "anchor_ids": tuple(int(i) for i in anchor_ids),
+            "template": f"rich:{action}:{core}|{pool}:{ti}|{parts}"}
+    return text, info
+
+
+def phrasing_space(kind: str = "rich") -> dict:
+    """How many distinct phrasings a phrasing (``"default"`` / ``"rich"``) composes.
+
+    ``verb_phrases``: distinct verb phrases over the four actions (the sentence without its
+    referring expression: frame or prefix, adverb, verb core, suffix, or a two-clause
+    form), with ``verb_phrases_by_action``; ``verb_cores``: distinct verb cores;
+    ``relation_phrasings``: distinct expression templates that use a relation;
+    ``object_words``: distinct words for the object classes.
+    """
+    if kind not in PHRASINGS:
+        raise ValueError(f"unknown phrasing {kind!r}; choose from {PHRASINGS}")
+    by_action: dict[str, set] = {}
+    if kind == "default":
+        for a in ACTIONS:
+            by_action[a] = {f"{p}{v} {{x}}" for p in _PREFIXES for v in VERBS[a]}
+        cores = {v for a in ACTIONS for v in VERBS[a]}
+        relations = {t for k, ts in TEMPLATES.items() if k is not None for t in ts}
+        words = {w for c in BUILDERS for w in WORDS.get(c, (c,))}
+    else:
+        for a in ACTIONS:
+            phrases = set()
+            seat_at = rp.SEAT_AT_VERBS.get(a, ())
+            for core in (*_cores(a), *seat_at):
+                for frame in rp.FRAMES:
+                    for adverb in rp.PREFIX_ADVERBS:
+                        for suffix in rp.SUFFIXES[a]:
+                            p = _verb_phrase(frame, adverb, core, suffix)
+                            if p is not None:
+                                phrases.add(p)
+            for core in _cores(a):
+                phrases.update(m.replace("{c}", core) for m in rp.MULTI_CLAUSE[a])
+            by_action[a] = phrases
+        cores = {c for a in ACTIONS for c in (*_cores(a), *rp.SEAT_AT_VERBS.get(a, ()))}
+        relations = {t for k, ts in rich_templates().items() if k is not None for t in ts}
+        words = {w for c in BUILDERS for w in (rp.RICH_WORDS.get(c) or WORDS.get(c) or (c,))}
+    return {"verb_phrases": len(set().union(*by_action.values())),
+            "verb_phrases_by_action": {a: len(p) for a, p in by_action.items()},
+            "verb_cores": len(cores), "relation_phrasings": len(relations),
+            "object_words": len(words)}
+
+
 def sample_task(room, rng, *, action: str | None = None, graph=None,
-                max_tries: int = 50) -> tuple[str, dict]:
+                max_tries: int = 50, phrasing: str = "default") -> tuple[str, dict]:
     """Pick an action (uniform over those with a target here, or ``action``), a target and
-    an instruction that singles it out: (text, info) as :func:`sample_instruction`."""
+    an instruction that singles it out: (text, info) as :func:`sample_instruction`, in the
+    given ``phrasing`` (``"default"``: the same texts for a seed as before the option
+    existed; ``"rich"``: :func:`sample_rich_instruction`)."""
+    if phrasing not in PHRASINGS:
+        raise ValueError(f"unknown phrasing {phrasing!r}; choose from {PHRASINGS}")
     g, rng = (graph if graph is not None else as_scene_graph(room)), _rng(rng)
     actions = [action] if action is not None else [a for a in ACTIONS if targets_for(g, a)]
     if not actions or not targets_for(g, actions[0]):
@@ -185,7 +391,8 @@ def sample_task(room, rng, *, action: str | None = None, graph=None,
         act = actions[rng.integers(len(actions))]
         cands = targets_for(g, act)
         try:
-            return sample_instruction(room, act, cands[rng.integers(len(cands))], rng, graph=g)
+            return sample_instruction(room, act, cands[rng.integers(len(cands))], rng, graph=g,
+                                      phrasing=phrasing)
         except NoUniqueReference:
             continue
     raise NoUniqueReference(f"no uniquely referable target for {actions} in {max_tries} tries")
@@ -253,6 +460,8 @@ def resolve(room_or_graph, reference) -> frozenset[int]:
     return as_scene_graph(room_or_graph).resolve(reference)
 
 
-__all__ = ["ACTIONS", "ACTION_TARGETS", "NoUniqueReference", "Reference", "SceneGraph",
-           "anchor_is_first", "parse_instruction", "referring_options", "resolve", "sample_instruction",
-           "sample_task", "simple_text", "targets_for"]
+__all__ = ["ACTIONS", "ACTION_TARGETS", "PHRASINGS", "NoUniqueReference", "Reference",
+           "SceneGraph", "anchor_is_first", "parse_instruction", "phrasing_space",
+           "referring_options", "resolve", "rich_templates", "sample_instruction",
+           "sample_rich_instruction", "sample_task", "seat_at_anchors", "simple_text",
+           "targets_for"]

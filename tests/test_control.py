@@ -77,11 +77,30 @@ def test_ground_trajectory_faces_where_it_goes():
     np.testing.assert_allclose(feats[:, 2], 0.9)
     fwd = np.asarray(rotation_6d_to_matrix(feats[:, 3:9]))[:, :, 2]  # the body's forward
     heading = np.degrees(np.arctan2(fwd[:, 1], fwd[:, 0]))
-    assert abs(heading[20]) < 1.0  # along +x on the first leg
-    assert abs(heading[70] - 0.0) < 1.0  # standing still: keeps facing +x
-    assert abs(heading[-10] - 90.0) < 1.0  # along +y on the second
+    assert abs(heading[20]) < 5.0  # along +x on the first leg (twisting ±4.6° with the stride)
+    assert abs(heading[70] - 0.0) < 1e-3  # standing still: keeps facing +x, no twist
+    assert abs(heading[-10] - 90.0) < 5.0  # along +y on the second
     up = np.asarray(rotation_6d_to_matrix(feats[:, 3:9]))[:, 2, 1]  # upright: y axis is up
-    np.testing.assert_allclose(up, 1.0, atol=1e-5)
+    assert up.min() > np.cos(0.041) and abs(up[70] - 1.0) < 1e-6  # rolls ≤ 0.04 rad walking
+
+
+def test_walking_rhythm_turns_the_pelvis_within_its_steps():
+    """``walking_rhythm``: roll once a stride, twist against it, phased by the distance walked
+    (a stride is two steps), nothing standing still, faded in below 0.4 m/s."""
+    from jaxmotion.planning.trajectory import STEP_LENGTH, walking_rhythm
+
+    xy = _walk([0, 0], [4, 0], speed=1.0)
+    roll, twist = walking_rhythm(xy)
+    walked = xy[:, 0] - xy[0, 0]
+    cruise = (walked > 0.5) & (walked < 3.5)  # at speed: the full amplitude
+    np.testing.assert_allclose(roll[cruise], 0.04 * np.sin(np.pi * walked[cruise] / STEP_LENGTH),
+                               atol=1e-6)
+    np.testing.assert_allclose(twist[cruise],
+                               -0.08 * np.cos(np.pi * walked[cruise] / STEP_LENGTH), atol=1e-6)
+    still = np.repeat([[1.0, 2.0]], 30, 0)
+    assert not np.any(walking_rhythm(still)[0]) and not np.any(walking_rhythm(still)[1])
+    slow = _walk([0, 0], [1, 0], speed=0.2)
+    assert np.abs(walking_rhythm(slow)[1]).max() <= 0.08 * 0.5 + 1e-9  # half speed of 0.4
 
 
 def test_generate_follows_a_given_path(room, tmp_path, capsys):

@@ -137,9 +137,10 @@ def test_path_trajectory_walks_at_a_human_pace_and_faces_where_told():
     np.testing.assert_allclose(tr[-1, :2], path[-1], atol=1e-3)
     np.testing.assert_allclose(tr[:, 2], 0.93)
     rot = np.asarray(rotation_6d_to_matrix(tr[:, 3:]))
-    np.testing.assert_allclose(rot[:, :, 1], np.tile([0, 0, 1.0], (len(tr), 1)), atol=1e-5)
+    # upright, rolling and twisting a few degrees within the steps (walking_rhythm)
+    assert rot[:, 2, 1].min() > np.cos(0.041) and abs(rot[-1, 2, 1] - 1.0) < 1e-6
     forward = rot[:, :2, 2]  # the body's forward axis (SMPL-X z) in the xy plane
-    np.testing.assert_allclose(forward[0], [-1, 0], atol=1e-5)
+    np.testing.assert_allclose(forward[0], [-1, 0], atol=0.02)  # setting off: twisted ≤ 1°
     np.testing.assert_allclose(forward[-1], [0, -1], atol=1e-5)
     mid = forward[len(tr) // 3]  # walking along +x in between
     assert mid[0] > 0.9

@@ -88,8 +88,10 @@ def ground_trajectory(xy, *, height: float, fps: float = 30.0,
     """Trajectory features ``[T, 9]`` of an upright body walking along ``xy [T, 2]``: the
     pelvis at ``height`` over each point, facing the direction of travel (averaged over
     ``smooth_time`` seconds), keeping its last facing while it moves slower than 0.15 m/s
-    (the first moving frame's facing before it first moves; +x if it never does)."""
-    from jaxmotion.planning.trajectory import trajectory_features
+    (the first moving frame's facing before it first moves; +x if it never does), and
+    turning within its steps as a walking pelvis does
+    (:func:`jaxmotion.planning.trajectory.walking_rhythm`: a few degrees of roll and twist)."""
+    from jaxmotion.planning.trajectory import trajectory_features, walking_rhythm
 
     xy = np.asarray(xy, np.float64)
     vel = np.gradient(xy, axis=0) * fps
@@ -106,7 +108,7 @@ def ground_trajectory(xy, *, height: float, fps: float = 30.0,
     heading = np.convolve(np.pad(heading, k, mode="edge"), np.ones(2 * k + 1) / (2 * k + 1),
                           "valid")
     pelvis = np.concatenate([xy, np.full((len(xy), 1), float(height))], -1)
-    return trajectory_features(pelvis, heading)
+    return trajectory_features(pelvis, heading, *walking_rhythm(xy, fps))
 
 
 def _head_for(scene, end) -> int:

@@ -9,6 +9,10 @@ pelvis stays at the body's standing height; the body faces along the path, turne
 (the heading is the path's tangent, averaged over ~0.3 m), and holds ``start_heading`` /
 ``end_heading`` when given (facing a seat before sitting, say) by turning over the first /
 last ``turn_time`` seconds.
+
+A walking pelvis also turns within each step (:func:`walking_rhythm`, as the synthetic world's
+walker): it rolls towards the stance foot and twists against the stride. The completion model
+reads the gait's phase from that turning, so a root made by rule carries it too.
 """
 
 from __future__ import annotations
@@ -17,25 +21,51 @@ import numpy as np
 
 from jaxmotion.motion.pace import GaitParams, arc_length, speed_profile, wrap
 
-__all__ = ["CRUISE_SPEED", "path_trajectory", "trajectory_features"]
+__all__ = ["CRUISE_SPEED", "STEP_LENGTH", "path_trajectory", "trajectory_features",
+           "walking_rhythm"]
 
 #: Default cruise speed of the pelvis (m/s): the middle of the synthetic walks' 0.8–1.5 m/s.
 CRUISE_SPEED = 1.1
+#: Distance walked per step (m) that phases :func:`walking_rhythm`.
+STEP_LENGTH = 0.65
 
 
 def _gait(speed: float, accel: float, decel: float) -> GaitParams:
-    return GaitParams(speed=speed, step_len=0.65, width=0.09, final_width=0.11, clearance=0.07,
+    return GaitParams(speed=speed, step_len=STEP_LENGTH, width=0.09, final_width=0.11, clearance=0.07,
                       heel_off=0.4, heel_strike=-0.17, accel=accel, decel=decel,
                       turn_rate=np.radians(175.0), toe_out=0.05, first_foot=0, turn_sign=1.0)
 
 
-def trajectory_features(pelvis, heading) -> np.ndarray:
+def walking_rhythm(xy, fps: float = 30.0, step_len: float = STEP_LENGTH):
+    """How a walking pelvis turns within its steps along ``xy [T, 2]``: ``(roll [T],
+    twist [T])`` in radians, about the body's forward and vertical axes, with the synthetic
+    walker's amplitudes (:func:`jaxmotion.motion.segments.from_locomotion`): it rolls towards
+    the stance foot once a stride (0.04 rad) and twists against the stride (0.08 rad). The
+    phase is the distance walked over ``step_len``; both fade in with the speed (full from
+    0.4 m/s) and are zero standing still."""
+    xy = np.asarray(xy, float)
+    walked = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
+    speed = np.gradient(walked) * fps if len(xy) > 1 else np.zeros(len(xy))
+    active = np.clip(speed / 0.4, 0.0, 1.0)
+    phase = walked / step_len  # steps taken
+    return (0.04 * np.sin(np.pi * phase) * active,
+            -0.08 * np.cos(np.pi * phase) * active)
+
+
+def trajectory_features(pelvis, heading, roll=None, twist=None) -> np.ndarray:
     """Trajectory features ``[T, 9]`` (pelvis xyz, 6D global orientation) of an upright body
-    at ``pelvis [T, 3]`` facing ``heading [T]`` (radians from +x, counter-clockwise)."""
+    at ``pelvis [T, 3]`` facing ``heading [T]`` (radians from +x, counter-clockwise), rolled
+    by ``roll [T]`` about its forward axis and twisted by ``twist [T]`` about its vertical
+    axis (radians; None: 0), as the synthetic character's pelvis
+    (:mod:`jaxmotion.motion.character`)."""
     from jaxmotion.geometry.rotations import matrix_to_rotation_6d
-    from jaxmotion.motion.kinematics import upright
+    from jaxmotion.motion.kinematics import ry, rz, upright
 
     rot = upright(np.asarray(heading, float))
+    if roll is not None:
+        rot = rot @ rz(np.asarray(roll, float))
+    if twist is not None:
+        rot = rot @ ry(np.asarray(twist, float))
     six = np.asarray(matrix_to_rotation_6d(np.asarray(rot, np.float32)), np.float32)
     return np.concatenate([np.asarray(pelvis, np.float32), six], axis=-1)
 
@@ -90,4 +120,4 @@ def path_trajectory(path, *, betas=None, fps: float = 30.0, speed: float = CRUIS
         delta = wrap(end_heading - heading[-1])
         heading = heading + (1.0 - ramp)[::-1] * delta
     pelvis = np.concatenate([xy, np.full((len(xy), 1), height)], -1)
-    return trajectory_features(pelvis, heading)
+    return trajectory_features(pelvis, heading, *walking_rhythm(xy, fps))

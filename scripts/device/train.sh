@@ -23,11 +23,10 @@
 # joint_velocity_weight=2", SCENES=2000 SPLIT=2000 to build in under 2 minutes;
 # add TRAIN_ARGS="model.traj_sensor=true sensor_points=2048" and drop init_from for a completion
 # model with the trajectory sensor, or preset=paper for the paper's size, from scratch).
-# The completion model with the trajectory's velocity (issue 20's skating; docs/results.md
-# "The completion model told the trajectory's velocity", not shipped: less sliding in
-# generate, more along rule-made paths): TRAIN_ARGS="joint_weight=200 foot_contact_weight=3
-# joint_velocity_weight=2 model.traj_velocity=true geometric_weighting=uniform" (the velocity
-# input grows at zero weight from the shipped model).
+# The shipped completion model reads the trajectory's velocity (docs/results.md, "The
+# completion model told the trajectory's velocity"): TRAIN_ARGS="joint_weight=200
+# foot_contact_weight=3 joint_velocity_weight=2 model.traj_velocity=true
+# geometric_weighting=uniform" continues it.
 # TASK=amdm trains the AMDM on the shipped ADM's maps (half the batches) with the temporal basis
 # of the plausibility issue (model.temporal_basis=24: docs/results.md, "A band-limited AMDM"),
 # from scratch; add

@@ -134,6 +134,25 @@ def referring_options(graph_or_room, target_id: int) -> dict:
     return opts
 
 
+def _draw_reference(g, target_id: int, opts: dict, rng, plain_prob: float):
+    """One of ``opts`` (:func:`referring_options`), as both grammars draw it: the plain name
+    with probability ``plain_prob`` when it is an option (always when it is the only one),
+    else a relation type uniformly, then one of its references. Returns ``(relation,
+    reference, anchor_ids, template pool)``; the pool is ``"near"`` for half of the
+    "closest" references whose anchor is within :data:`NEAR`."""
+    rels = [r for r in opts if r is not None]
+    if None in opts and (not rels or rng.random() < plain_prob):
+        rel = None
+    else:
+        rel = rels[rng.integers(len(rels))]
+    ref = opts[rel][rng.integers(len(opts[rel]))]
+    anchor_ids = tuple(g.instances(c)[0] for c in ref.anchors)
+    pool = rel
+    if rel == "closest" and g.distance(target_id, anchor_ids[0]) <= NEAR and rng.random() < 0.5:
+        pool = "near"
+    return rel, ref, anchor_ids, pool
+
+
 def sample_instruction(room, action: str, target_id: int, rng, *, graph=None,
                        plain_prob: float = 0.6, phrasing: str = "default") -> tuple[str, dict]:
     """A random instruction for ``action`` on object ``target_id``: (text, info).
@@ -158,16 +177,7 @@ def sample_instruction(room, action: str, target_id: int, rng, *, graph=None,
     opts = referring_options(g, target_id)
     if not opts:
         raise NoUniqueReference(f"nothing singles out {g.name(target_id)} in its room")
-    rels = [r for r in opts if r is not None]
-    if None in opts and (not rels or rng.random() < plain_prob):
-        rel = None
-    else:
-        rel = rels[rng.integers(len(rels))]
-    ref = opts[rel][rng.integers(len(opts[rel]))]
-    anchor_ids = [g.instances(c)[0] for c in ref.anchors]
-    pool = rel
-    if rel == "closest" and g.distance(target_id, anchor_ids[0]) <= NEAR and rng.random() < 0.5:
-        pool = "near"
+    rel, ref, anchor_ids, pool = _draw_reference(g, target_id, opts, rng, plain_prob)
     ti = int(rng.integers(len(TEMPLATES[pool])))
     words = [_word(c, rng) for c in (cat, *ref.anchors)]
     expr = TEMPLATES[pool][ti].format(t=words[0], a=(words[1:2] or [""])[0],
@@ -286,17 +296,8 @@ def sample_rich_instruction(room, action: str, target_id: int, rng, *, graph=Non
         expr = f"the {_rich_word(g.category(a), rng)}"
         rel, anchors, anchor_ids, pool, ti, form = "at", (g.category(a),), (a,), "at", 0, "frame"
     else:
-        rels = [r for r in opts if r is not None]
-        if None in opts and (not rels or rng.random() < plain_prob):
-            rel = None
-        else:
-            rel = rels[rng.integers(len(rels))]
-        ref = opts[rel][rng.integers(len(opts[rel]))]
-        anchors, anchor_ids = tuple(ref.anchors), tuple(g.instances(c)[0] for c in ref.anchors)
-        pool = rel
-        if rel == "closest" and g.distance(target_id, anchor_ids[0]) <= NEAR and (
-                rng.random() < 0.5):
-            pool = "near"
+        rel, ref, anchor_ids, pool = _draw_reference(g, target_id, opts, rng, plain_prob)
+        anchors = tuple(ref.anchors)
         templates = rich_templates()[pool]
         ti = int(rng.integers(len(templates)))
         words = [_rich_word(c, rng) for c in (cat, *anchors)]

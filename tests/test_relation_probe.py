@@ -16,6 +16,11 @@ from jaxmotion.eval.relation_probe import canonical_pair, main, relation_probe
       "stand up from the stool farthest from the window")),
     ("Walk over to the couch right by the tv", ("walk to the sofa closest to the tv",
                                                 "walk to the sofa farthest from the tv")),
+    # phrasings of `synth --phrasing rich`, read as `generate` reads them
+    ("Could you take a seat on the stool that is nearest to the cabinet please",
+     ("sit on the stool closest to the cabinet", "sit on the stool farthest from the cabinet")),
+    ("plop down on the armchair furthest away from the door",
+     ("sit on the armchair farthest from the door", "sit on the armchair closest to the door")),
 ])
 def test_canonical_pair(text, want):
     assert canonical_pair(text) == want
@@ -24,6 +29,7 @@ def test_canonical_pair(text, want):
 @pytest.mark.parametrize("text", [
     "sit on the chair", "walk to the lamp between the sofa and the tv",
     "lie on the bed with the pillow on it", "dance wildly",
+    "sit at the desk closest to the window",  # the seat at the desk: the relation is the desk's
 ])
 def test_other_instructions_are_not_probed(text):
     assert canonical_pair(text) is None

@@ -18,8 +18,10 @@ the case selection and ``anchor_visible`` use the view too.
     python -m jaxmotion.eval.relation_probe --data data/synth --adm A --amdm M
 
 (``A``, ``M``: training workdirs or ``.safetensors``; the AMDM only supplies the crop
-settings, as in ``jaxmotion eval``.) The rewrite needs instructions in the synthetic
-world's grammar (:func:`jaxmotion.scene.instructions.parse_instruction`).
+settings, as in ``jaxmotion eval``.) Instructions are read by the reader ``generate`` uses
+(:func:`jaxmotion.grounding.target.read_instruction`), so datasets of either phrasing
+(``jaxmotion synth --phrasing default|rich``) are probed; a "sit at the desk closest to …"
+(the seat at an object) is left out, its relation being about the desk, not the seat.
 """
 
 from __future__ import annotations
@@ -38,17 +40,25 @@ _OPPOSITE = {"closest": "farthest", "farthest": "closest"}
 
 def canonical_pair(text: str) -> tuple[str, str] | None:
     """``(true form, opposite form)`` of a "closest" / "farthest" instruction, else None."""
-    from jaxmotion.scene.instructions import parse_instruction, simple_text
+    from jaxmotion.scene.instructions import simple_text
 
-    try:
-        action, ref = parse_instruction(text)
-    except ValueError:
-        return None
-    if ref.relation not in _PHRASE or len(ref.anchors) != 1:
+    ref, action = _reference(text)
+    if ref is None or ref.relation not in _PHRASE or len(ref.anchors) != 1:
         return None
     base = simple_text(action, ref.target)
     true = f"{base} {_PHRASE[ref.relation].format(a=ref.anchors[0])}"
     return true, f"{base} {_PHRASE[_OPPOSITE[ref.relation]].format(a=ref.anchors[0])}"
+
+
+def _reference(text):
+    """``(Reference, action)`` of an instruction as ``generate`` reads it; ``(None, None)``
+    when it names no class or no action, or asks for the seat at an object."""
+    from jaxmotion.grounding.target import read_instruction
+
+    ins = read_instruction(text)
+    if ins.action is None or ins.reference is None or ins.reading.seat_at:
+        return None, None
+    return ins.reference, ins.action
 
 
 def relation_probe(data_dir, adm, amdm, *, splits=("val", "test"), num_cases: int = 400,
@@ -124,9 +134,9 @@ def anchor_visible(case, min_points: int = 5) -> bool:
     """Whether an object of the anchor's class has at least ``min_points`` points in the case's
     crop (or the ADM's view): only then can any model that sees the crop resolve "closest /
     farthest from it"."""
-    from jaxmotion.scene.instructions import parse_instruction
-
-    _, ref = parse_instruction(case["text"])
+    ref, _ = _reference(case["text"])
+    if ref is None or not ref.anchors:
+        return False
     ids = [o["id"] for o in case.get("objects", ()) if o["category"] in ref.anchors[:1]]
     return any(int((case["instance"] == i).sum()) >= min_points for i in ids)
 

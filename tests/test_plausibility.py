@@ -312,3 +312,79 @@ def test_furniture_frames_counts_frames_with_a_joint_inside_a_box():
     np.testing.assert_allclose(both, [want, 0.0])
     with pytest.raises(ValueError, match="joints must be"):
         furniture_frames(joints[0], [table])
+
+
+def _foot_faults_reference(joints, mask, fps=30.0, h=0.05, v=0.5, sink=0.03):
+    """Frame-pair loop of :func:`jaxmotion.eval.skating.foot_faults`."""
+    from jaxmotion.eval.skating import FOOT_FLOOR_OFFSETS, FOOT_JOINTS
+
+    off = np.asarray(FOOT_FLOOR_OFFSETS)
+    bad, n = 0, 0
+    for t in range(len(joints) - 1):
+        if not (mask[t] and mask[t + 1]):
+            continue
+        n += 1
+        slides = False
+        for f, j in enumerate(FOOT_JOINTS):
+            a, b = joints[t, j], joints[t + 1, j]
+            if a[2] - off[f] < h and b[2] - off[f] < h and np.hypot(*(b[:2] - a[:2])) * fps > v:
+                slides = True
+        lowest = min(joints[t + 1, j, 2] - off[f] for f, j in enumerate(FOOT_JOINTS))
+        bad += slides or lowest > h or lowest < -sink
+    return bad / n
+
+
+def test_foot_faults_matches_a_frame_loop_and_counts_slides_hovers_and_sinks():
+    from jaxmotion.eval.skating import FOOT_FLOOR_OFFSETS, FOOT_JOINTS, foot_faults
+
+    t = 40
+    planted = np.zeros((t, 22, 3), np.float32)
+    planted[:, :, 2] = 0.9
+    planted[:, list(FOOT_JOINTS), 2] = np.asarray(FOOT_FLOOR_OFFSETS)[None]
+    assert float(foot_faults(planted)) == 0.0
+    hover = planted.copy()
+    hover[10:20, list(FOOT_JOINTS), 2] += 0.2  # both feet in the air for 10 frames
+    assert float(foot_faults(hover)) == pytest.approx(10 / (t - 1))
+    sunk = planted.copy()
+    sunk[30:, list(FOOT_JOINTS), 2] -= 0.1  # the feet 10 cm under the floor
+    assert float(foot_faults(sunk)) == pytest.approx(10 / (t - 1))
+    slide = planted.copy()
+    slide[:, :, 0] += np.arange(t)[:, None] * 0.05  # 1.5 m/s with the feet on the floor
+    assert float(foot_faults(slide)) == 1.0
+
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        j = planted + rng.normal(0, 0.04, planted.shape).astype(np.float32)
+        mask = rng.random(t) > 0.2
+        got = float(jax.jit(foot_faults)(j, mask))
+        assert got == pytest.approx(_foot_faults_reference(j, mask), abs=1e-6)
+    assert np.isnan(float(foot_faults(planted, np.zeros(t, bool))))
+
+
+def test_select_motion_with_feet_keeps_the_planted_feet_among_those_near_the_target():
+    """``feet=True``: among candidates within ``GOAL_SLACK`` of the closest, the one whose
+    feet slide, hover or sink least; one further away does not compete however well planted."""
+    from jaxmotion.eval.skating import FOOT_FLOOR_OFFSETS, FOOT_JOINTS
+    from jaxmotion.pipelines.affordance import GOAL_SLACK, select_motion
+
+    t = 30
+    stand = np.zeros((t, 22, 3), np.float32)
+    stand[:, :, 2] = np.linspace(0.0, 1.6, 22)[None]
+    stand[:, list(FOOT_JOINTS), 2] = np.asarray(FOOT_FLOOR_OFFSETS)[None]
+    points = np.array([[1.0, 0.0, 0.5]], np.float32)
+    target, mask = np.array([True]), np.ones(t, bool)
+
+    def at(x, hover=0.0):
+        m = stand.copy()
+        m[:, :, 0] += x
+        m[:, list(FOOT_JOINTS), 2] += hover
+        return m
+
+    closest_hovering = at(1.0, hover=0.15)  # touches the target, feet 15 cm in the air
+    near_planted = at(1.0 - 0.5 * GOAL_SLACK)  # a little further, feet on the floor
+    far_planted = at(1.0 - 5 * GOAL_SLACK)  # far: does not compete
+    cands = jnp.asarray(np.stack([far_planted, closest_hovering, near_planted])[None])
+    args = (points[None], target[None], mask[None])
+    assert int(select_motion(cands, *args, return_index=True)[0]) == 1
+    assert int(select_motion(cands, *args, feet=True, return_index=True)[0]) == 2
+    assert int(select_motion(cands[:, :2], *args, feet=True, return_index=True)[0]) == 1

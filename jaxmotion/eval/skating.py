@@ -32,7 +32,7 @@ import jax.numpy as jnp
 from jaxmotion.constants import FOOT_JOINTS  # l_ankle, r_ankle, l_foot, r_foot (SMPL-X)
 from jaxmotion.eval._common import as_mask, masked_mean, require_any, safe_norm
 
-__all__ = ["FOOT_FLOOR_OFFSETS", "FOOT_JOINTS", "foot_skating"]
+__all__ = ["FOOT_FLOOR_OFFSETS", "FOOT_JOINTS", "foot_faults", "foot_skating"]
 
 #: Height (m) of each of :data:`FOOT_JOINTS` above the floor when the foot is flat.
 FOOT_FLOOR_OFFSETS: tuple[float, ...] = (0.07, 0.07, 0.025, 0.025)
@@ -101,3 +101,35 @@ def _skating(feet, offsets, pair_ok, fps, height_threshold, velocity_threshold):
     n = jnp.sum(counted)
     velocity = jnp.sum(jnp.where(counted, speed, 0.0)) / jnp.maximum(n, 1)
     return {"skate_ratio": ratio, "skate_velocity": velocity}
+
+
+def foot_faults(joints, mask=None, *, fps: float = 30.0, height_threshold: float = 0.05,
+                velocity_threshold: float = 0.5, sink: float = 0.03):
+    """The share of frame pairs in which the feet are not planted the way a person's are.
+
+    A pair (t, t+1) of valid frames is at fault when, in it, a foot **slides** (it skates,
+    as :func:`foot_skating` counts it: a foot joint under ``height_threshold`` above its
+    flat-foot height in both frames moving faster than ``velocity_threshold`` m/s), or at
+    frame t+1 the lowest foot joint **hovers** more than ``height_threshold`` above its
+    flat-foot height (no foot reaches the floor), or **sinks** more than ``sink`` metres
+    under it (the floor at z = 0). Skating alone rewards feet in the air (a foot above
+    5 cm never skates); with the other two a motion scores well only with its feet on the
+    floor and still while they are. A lying or seated body's feet may be off the floor:
+    compare motions of the same action (the best of M does), not across actions.
+
+    Pure JAX (jit / vmap it): ``joints [T, 22, 3]`` (z-up, metres), ``mask [T]`` or None.
+    Returns a float32 scalar in [0, 1] (NaN without two consecutive valid frames).
+    """
+    joints = jnp.asarray(joints, jnp.float32)
+    feet = joints[:, jnp.asarray(FOOT_JOINTS), :]  # [T, F, 3]
+    height = feet[..., 2] - jnp.asarray(FOOT_FLOOR_OFFSETS, jnp.float32)[None]  # [T, F]
+    low = height < height_threshold
+    speed = safe_norm(feet[1:, :, :2] - feet[:-1, :, :2]) * fps  # [T-1, F]
+    slides = jnp.any(low[1:] & low[:-1] & (speed > velocity_threshold), axis=1)
+    lowest = jnp.min(height[1:], axis=1)
+    fault = slides | (lowest > height_threshold) | (lowest < -sink)
+    pair_ok = None if mask is None else jnp.asarray(mask, bool)[1:] & jnp.asarray(mask, bool)[:-1]
+    if pair_ok is None:
+        return jnp.mean(fault.astype(jnp.float32))
+    n = jnp.sum(pair_ok)
+    return jnp.where(n > 0, jnp.sum(fault & pair_ok) / jnp.maximum(n, 1), jnp.nan)

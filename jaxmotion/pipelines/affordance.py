@@ -443,12 +443,15 @@ class AffordancePipeline:
         return jax.vmap(carry_field)(points, view_points, view_maps)
 
 
+#: With ``select_motion(feet=True)``, candidates this much (m) further from the target than the
+#: closest one still compete on their feet.
+GOAL_SLACK = 0.1
 #: A joint closer than this (m) to a point of ``select_motion``'s ``avoid`` touches it.
 AVOID_DISTANCE = 0.05
 
 
 def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis_speed=None,
-                  avoid=None, return_index: bool = False):
+                  avoid=None, feet: bool = False, return_index: bool = False):
     """Of the candidates ``motions [B, M, T, 22, 3]`` of each example, the one whose body
     comes closest to ``target [B, N]`` (points of the target object among ``points
     [B, N, 3]``, same frame) at the anchor frame: the first valid frame of ``mask [B, T]``
@@ -459,9 +462,14 @@ def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis
     faster than that while another's does not (a walk at a run, beyond the dataset's motions).
     With ``avoid [B, N]`` (points a body must keep out of: furniture that is not the target),
     among the candidates of the best of those tiers the ones with the fewest frames where a
-    joint is within :data:`AVOID_DISTANCE` of such a point compete. An example with no target
-    point keeps its first plausible candidate. Returns ``[B, T, 22, 3]`` (``return_index``:
-    the chosen candidates' indices ``[B]``); every pipeline's best-of-M uses it."""
+    joint is within :data:`AVOID_DISTANCE` of such a point compete. With ``feet``, of those,
+    the ones within :data:`GOAL_SLACK` of the closest compete on their feet: the one with the
+    fewest frames whose feet slide, hover or sink (:func:`jaxmotion.eval.skating.foot_faults`)
+    is kept — closeness is a gate, not the prize, since the anchor guidance already puts
+    every candidate at its target. An example with no target point keeps its first plausible
+    candidate (with ``feet``, the one with the best feet). Returns ``[B, T, 22, 3]``
+    (``return_index``: the chosen candidates' indices ``[B]``); every pipeline's best-of-M
+    uses it."""
     from jaxmotion.eval.plausibility import teleports
 
     mask = jnp.asarray(mask, bool)
@@ -494,6 +502,15 @@ def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis
             axis=3) & mask[:, None]
         tier = tier * 1000 + jnp.minimum(jnp.sum(touch, axis=2), 999)
     best_tier = jnp.min(tier, axis=1, keepdims=True)  # only the best tier's candidates compete
+    if feet:  # near enough the target, the best-planted feet
+        from jaxmotion.eval.skating import foot_faults
+
+        faults = jax.vmap(jax.vmap(foot_faults, in_axes=(0, None)))(motions, mask)  # [B, M]
+        near = score <= jnp.min(jnp.where(tier == best_tier, score, jnp.inf), axis=1,
+                                keepdims=True) + GOAL_SLACK
+        tier = jnp.where(near, tier, tier + 1_000_000)  # too far: out of the best tier
+        best_tier = jnp.min(tier, axis=1, keepdims=True)
+        score = jnp.nan_to_num(faults, nan=1.0) + 1e-3 * score  # ties: the closer
     best = jnp.argmin(jnp.where(tier == best_tier, score, jnp.inf), axis=1)  # ties: the first
     if return_index:
         return best

@@ -268,8 +268,9 @@ class ObjectCentricPipeline:
           object's points); text_emb ``[B, text_dim]``; betas ``[B, 10]``; mask ``[B, T]``;
           trajectory, completion: the two stages' samplers; anchor_first ``[B]`` bool or None
           (as :func:`~jaxmotion.pipelines.affordance.select_motion`, which picks among the
-          candidates: never a teleporting one while another is smooth, else the closest to
-          the target at the anchor frame); keep_trajectory, anchor_guidance: as
+          candidates: never a teleporting one while another is smooth; of those near enough
+          the target at the anchor frame, the one whose feet slide, hover or sink in the
+          fewest frames); keep_trajectory, anchor_guidance: as
           :meth:`sample_one`; action: ``[B]`` int indices into ``ACTION_CLASSES`` (None:
           unknown); avoid: ``[B, N]`` bool or None, the points a body must keep out of
           (furniture): among the plausible candidates, those touching them in the fewest
@@ -298,7 +299,7 @@ class ObjectCentricPipeline:
         if m == 1:
             return {"joints": joints[:, 0], "motion": motion[:, 0]}
         best = select_motion(joints, points, target, mask, anchor_first,
-                             brisk_pelvis_speed=BRISK_PELVIS_SPEED, avoid=avoid,
+                             brisk_pelvis_speed=BRISK_PELVIS_SPEED, avoid=avoid, feet=True,
                              return_index=True)
         return {"joints": joints[jnp.arange(b), best], "motion": motion[jnp.arange(b), best]}
 

@@ -181,15 +181,16 @@ def choose(joints, points, target, others, anchor_first):
     ``generate``'s best of M (:func:`~jaxmotion.pipelines.affordance.select_motion`: never a
     teleporting one while another is smooth, nor one faster than 2 m/s while another is not),
     then the fewest frames with a joint within 5 cm of the ``others`` points (furniture that
-    is not the target), then the body closest to the ``target`` points at the anchor frame
-    (the first with ``anchor_first``, else the last)."""
+    is not the target), then, of those within ``GOAL_SLACK`` of the body closest to the
+    ``target`` points at the anchor frame (the first with ``anchor_first``, else the last),
+    the one whose feet slide, hover or sink in the fewest frames (the floor at z = 0)."""
     from jaxmotion.pipelines.affordance import select_motion
     from jaxmotion.pipelines.object_centric import BRISK_PELVIS_SPEED
 
     return select_motion(joints[None], points[None], target[None],
                          jnp.ones((1, joints.shape[1]), bool), jnp.asarray(anchor_first)[None],
                          brisk_pelvis_speed=BRISK_PELVIS_SPEED, avoid=others[None],
-                         return_index=True)[0]
+                         feet=True, return_index=True)[0]
 
 
 def _goal(grid, scene, obj, start, action):

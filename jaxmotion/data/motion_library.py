@@ -62,7 +62,7 @@ __all__ = [
     "frame_states", "library_digest", "library_files", "load_library", "read_library",
 ]  # fmt: skip
 
-LIBRARY_VERSION = 1  # bump when the rules below change: the digest (and the cache) follow
+LIBRARY_VERSION = 2  # bump when the rules below change: the digest (and the cache) follow
 LIBRARY_FORMATS = {".npz": "amass", ".bvh": "bvh", ".npy": "humanml3d"}
 LABELS_FILE = "labels.json"
 FPS = 30.0
@@ -183,7 +183,10 @@ def label_from_name(rel: str) -> str | None:
 def frame_states(joints: np.ndarray) -> dict:
     """Per-frame body states of ``joints [T,22,3]`` (z-up, floor at 0), bool ``[T]`` arrays:
 
-    - ``lying``: the pelvis -> neck vector within 35 deg of level;
+    - ``lying``: the pelvis -> neck vector within 35 deg of level, both thighs within 45 deg
+      of level and both ankles at least 35 cm (horizontally) from the pelvis: the legs lie
+      along the support too (a body kneeling or squatting while bent forward, its torso as
+      level, has a thigh hanging under it or its feet under the pelvis);
     - ``seated``: torso up (> 45 deg), thighs on average > 45 deg from hanging straight down,
       the pelvis at least 30 cm high (on furniture, not the floor) and 10 % below its highest;
     - ``standing``: torso up (> 60 deg), both thighs within 40 deg of straight down;
@@ -196,7 +199,8 @@ def frame_states(joints: np.ndarray) -> dict:
     # angle of each thigh from straight down, degrees
     down = np.degrees(np.arccos(np.clip(-thigh[..., 2] / np.linalg.norm(thigh, axis=-1), -1, 1)))
     height = j[:, 0, 2]
-    lying = torso_el < 35.0
+    ankle_reach = np.linalg.norm(j[:, [7, 8], :2] - j[:, None, 0, :2], axis=-1)
+    lying = (torso_el < 35.0) & (down.min(1) > 45.0) & (ankle_reach.min(1) > 0.35)
     standing = ~lying & (torso_el > 60.0) & (down.max(1) < 40.0)
     seated = (~lying & (torso_el > 45.0) & (down.mean(1) > 45.0) & (height > 0.3)
               & (height < 0.9 * height.max()))

@@ -267,3 +267,14 @@ def test_kneeling_or_squatting_bent_forward_is_not_lying():
                   [[0, 0.1, 0.07], [0, -0.1, 0.07]])
     take = np.stack([stand] * 40 + [kneel] * 60 + [stand] * 40)
     assert "lie" not in action_windows(take)
+
+
+def test_a_walk_there_and_back_ends_where_it_is_farthest(motions):
+    """A real clip walked 0.9 m, turned round and walked back to where it began: as a walk
+    to a target it ends at its farthest point, not back beside its start."""
+    j = np.asarray(motions["walk"][1].joints)[:45]
+    assert np.linalg.norm(j[-1, 0, :2] - j[0, 0, :2]) > 0.5
+    there_and_back = np.concatenate([j, j[::-1]])
+    assert action_windows(there_and_back)["walk"] == (0, 45)
+    # on the spot (no farther than 0.5 m from the start): no walk
+    assert "walk" not in action_windows(np.concatenate([j[:12], j[:12][::-1]] * 3))

@@ -19,7 +19,10 @@ Windows come from per-frame body states (:func:`frame_states`: standing, seated 
 something at least 30 cm high, lying), so a labelled file must also *show* its action (it
 is rejected, and counted, otherwise):
 
-- ``walk``: upright throughout, the pelvis travelling at least 0.5 m; the first 120 frames;
+- ``walk``: upright throughout; the first 120 frames, or, when the pelvis ends them less
+  than half its path length from where it started (there and back, as a walk that turns
+  round), the frames up to where it is farthest from its start; the pelvis ends at least
+  0.5 m from its start;
 - ``sit``: standing, then seated for at least :data:`HOLD` frames: ends :data:`HOLD`
   frames after the body settles;
 - ``stand_up``: seated, then standing: starts :data:`HOLD` frames before the body rises;
@@ -223,7 +226,10 @@ def action_windows(joints: np.ndarray) -> dict:
     pelvis = np.asarray(joints, np.float64)[:, 0, :2]
     if s["upright"].all() and t >= MIN_FRAMES:
         stop = min(t, MAX_FRAMES)
-        if np.linalg.norm(np.diff(pelvis[:stop], axis=0), axis=1).sum() >= 0.5:
+        away = np.linalg.norm(pelvis[:stop] - pelvis[0], axis=1)
+        if away[-1] < 0.5 * np.linalg.norm(np.diff(pelvis[:stop], axis=0), axis=1).sum():
+            stop = int(np.argmax(away)) + 1  # there and back: up to the farthest point
+        if stop >= MIN_FRAMES and away[stop - 1] >= 0.5:
             out["walk"] = (0, stop)
     for action, before, after in (("sit", "standing", "seated"), ("lie", None, "lying")):
         for a, b in _runs(s[after], HOLD):

@@ -17,10 +17,17 @@ import pytest
 from jaxmotion.cli import main
 from jaxmotion.data.clip_placement import heading, transform_clip
 from jaxmotion.data.format import DatasetError, load_sample
-from jaxmotion.data.motion_library import action_windows, label_from_name, load_library
+from jaxmotion.data.motion_library import (
+    action_windows,
+    frame_states,
+    label_from_name,
+    load_library,
+)
 from jaxmotion.data.synth import SynthSettings, build_dataset
+from jaxmotion.geometry import JOINT_NAMES
 from jaxmotion.io import smplx_joints_host
 
+JI = {n: i for i, n in enumerate(JOINT_NAMES)}
 SETTINGS = SynthSettings(scenes=2, per_scene=3, seed=3, points_per_scene=2000)
 
 
@@ -228,3 +235,46 @@ def test_joint_only_files_get_fitted_smplx(tmp_path, motions):
     assert manifest["samples_by_origin"]["library_clips"] >= 1
     used = [json.loads(f.read_text()) for f in (out / "provenance").glob("*/*.json")]
     assert all(u["smplx_fitted"] for u in used if u["source"] == "library")
+
+
+def _pose(pelvis, neck, knees, ankles, half_hips=0.1):
+    """Joints [22,3] with the ones frame_states reads placed (others at the pelvis); the
+    body faces +x, its left is +y."""
+    j = np.tile(np.asarray(pelvis, float), (22, 1))
+    j[JI["l_hip"]] = np.add(pelvis, [0, half_hips, -0.03])
+    j[JI["r_hip"]] = np.add(pelvis, [0, -half_hips, -0.03])
+    j[JI["neck"]] = neck
+    j[[JI["l_knee"], JI["r_knee"]]] = knees
+    j[[JI["l_ankle"], JI["r_ankle"]]] = ankles
+    return j
+
+
+def test_kneeling_or_squatting_bent_forward_is_not_lying():
+    lean30 = [0.39, 0.0, 0.48 + 0.22]  # the pelvis -> neck vector 30 deg from level
+    kneel = _pose([0, 0, 0.48], lean30, [[0.4, 0.1, 0.45], [0.0, -0.1, 0.04]],
+                  [[0.4, 0.1, 0.07], [-0.4, -0.1, 0.05]])  # right knee on the floor
+    squat = _pose([0, 0, 0.40], [0.39, 0, 0.62], [[0.35, 0.1, 0.55], [0.35, -0.1, 0.55]],
+                  [[0.2, 0.1, 0.07], [0.2, -0.1, 0.07]])  # feet under the body
+    on_bed = _pose([0, 0, 0.55], [-0.45, 0, 0.6], [[0.4, 0.1, 0.57], [0.4, -0.1, 0.57]],
+                   [[0.8, 0.1, 0.52], [0.8, -0.1, 0.52]])
+    knees_up = _pose([0, 0, 0.55], [-0.45, 0, 0.6], [[0.3, 0.1, 0.8], [0.3, -0.1, 0.8]],
+                     [[0.55, 0.1, 0.6], [0.55, -0.1, 0.6]])  # on the back, feet flat
+    s = frame_states(np.stack([kneel, squat, on_bed, knees_up]))
+    assert s["lying"].tolist() == [False, False, True, True]
+    assert not s["seated"][:2].any() and not s["standing"][:2].any()
+    # a stand -> kneel -> stand take (the MocapBank file's action) holds no lie window
+    stand = _pose([0, 0, 0.95], [0, 0, 1.4], [[0, 0.1, 0.5], [0, -0.1, 0.5]],
+                  [[0, 0.1, 0.07], [0, -0.1, 0.07]])
+    take = np.stack([stand] * 40 + [kneel] * 60 + [stand] * 40)
+    assert "lie" not in action_windows(take)
+
+
+def test_a_walk_there_and_back_ends_where_it_is_farthest(motions):
+    """A real clip walked 0.9 m, turned round and walked back to where it began: as a walk
+    to a target it ends at its farthest point, not back beside its start."""
+    j = np.asarray(motions["walk"][1].joints)[:45]
+    assert np.linalg.norm(j[-1, 0, :2] - j[0, 0, :2]) > 0.5
+    there_and_back = np.concatenate([j, j[::-1]])
+    assert action_windows(there_and_back)["walk"] == (0, 45)
+    # on the spot (no farther than 0.5 m from the start): no walk
+    assert "walk" not in action_windows(np.concatenate([j[:12], j[:12][::-1]] * 3))

@@ -19,7 +19,10 @@ Windows come from per-frame body states (:func:`frame_states`: standing, seated 
 something at least 30 cm high, lying), so a labelled file must also *show* its action (it
 is rejected, and counted, otherwise):
 
-- ``walk``: upright throughout, the pelvis travelling at least 0.5 m; the first 120 frames;
+- ``walk``: upright throughout; the first 120 frames, or, when the pelvis ends them less
+  than half its path length from where it started (there and back, as a walk that turns
+  round), the frames up to where it is farthest from its start; the pelvis ends at least
+  0.5 m from its start;
 - ``sit``: standing, then seated for at least :data:`HOLD` frames: ends :data:`HOLD`
   frames after the body settles;
 - ``stand_up``: seated, then standing: starts :data:`HOLD` frames before the body rises;
@@ -62,7 +65,7 @@ __all__ = [
     "frame_states", "library_digest", "library_files", "load_library", "read_library",
 ]  # fmt: skip
 
-LIBRARY_VERSION = 1  # bump when the rules below change: the digest (and the cache) follow
+LIBRARY_VERSION = 2  # bump when the rules below change: the digest (and the cache) follow
 LIBRARY_FORMATS = {".npz": "amass", ".bvh": "bvh", ".npy": "humanml3d"}
 LABELS_FILE = "labels.json"
 FPS = 30.0
@@ -183,7 +186,10 @@ def label_from_name(rel: str) -> str | None:
 def frame_states(joints: np.ndarray) -> dict:
     """Per-frame body states of ``joints [T,22,3]`` (z-up, floor at 0), bool ``[T]`` arrays:
 
-    - ``lying``: the pelvis -> neck vector within 35 deg of level;
+    - ``lying``: the pelvis -> neck vector within 35 deg of level, both thighs within 45 deg
+      of level and both ankles at least 35 cm (horizontally) from the pelvis: the legs lie
+      along the support too (a body kneeling or squatting while bent forward, its torso as
+      level, has a thigh hanging under it or its feet under the pelvis);
     - ``seated``: torso up (> 45 deg), thighs on average > 45 deg from hanging straight down,
       the pelvis at least 30 cm high (on furniture, not the floor) and 10 % below its highest;
     - ``standing``: torso up (> 60 deg), both thighs within 40 deg of straight down;
@@ -196,7 +202,8 @@ def frame_states(joints: np.ndarray) -> dict:
     # angle of each thigh from straight down, degrees
     down = np.degrees(np.arccos(np.clip(-thigh[..., 2] / np.linalg.norm(thigh, axis=-1), -1, 1)))
     height = j[:, 0, 2]
-    lying = torso_el < 35.0
+    ankle_reach = np.linalg.norm(j[:, [7, 8], :2] - j[:, None, 0, :2], axis=-1)
+    lying = (torso_el < 35.0) & (down.min(1) > 45.0) & (ankle_reach.min(1) > 0.35)
     standing = ~lying & (torso_el > 60.0) & (down.max(1) < 40.0)
     seated = (~lying & (torso_el > 45.0) & (down.mean(1) > 45.0) & (height > 0.3)
               & (height < 0.9 * height.max()))
@@ -219,7 +226,10 @@ def action_windows(joints: np.ndarray) -> dict:
     pelvis = np.asarray(joints, np.float64)[:, 0, :2]
     if s["upright"].all() and t >= MIN_FRAMES:
         stop = min(t, MAX_FRAMES)
-        if np.linalg.norm(np.diff(pelvis[:stop], axis=0), axis=1).sum() >= 0.5:
+        away = np.linalg.norm(pelvis[:stop] - pelvis[0], axis=1)
+        if away[-1] < 0.5 * np.linalg.norm(np.diff(pelvis[:stop], axis=0), axis=1).sum():
+            stop = int(np.argmax(away)) + 1  # there and back: up to the farthest point
+        if stop >= MIN_FRAMES and away[stop - 1] >= 0.5:
             out["walk"] = (0, stop)
     for action, before, after in (("sit", "standing", "seated"), ("lie", None, "lying")):
         for a, b in _runs(s[after], HOLD):

@@ -69,6 +69,8 @@ class BVH(NamedTuple):
       channels: channel names of each joint, e.g. ``("Zrotation", "Xrotation", "Yrotation")``.
       frames: ``[T, C]`` channel values per frame, joints in file order.
       frame_time: seconds per frame.
+      end_sites: ``(parent joint index, (x, y, z) offset)`` of each ``End Site``, file order
+        (real skeletons end their chains there: a foot's toe tip, the top of the head).
     """
 
     names: tuple[str, ...]
@@ -77,6 +79,7 @@ class BVH(NamedTuple):
     channels: tuple[tuple[str, ...], ...]
     frames: np.ndarray
     frame_time: float
+    end_sites: tuple[tuple[int, tuple[float, float, float]], ...] = ()
 
 
 def write_bvh(
@@ -177,6 +180,7 @@ def read_bvh(path) -> BVH:
     parents: list[int] = []
     offsets: list[list[float]] = []
     channels: list[tuple[str, ...]] = []
+    end_sites: list[tuple[int, tuple[float, float, float]]] = []
     take("HIERARCHY")
     stack: list[int] = []  # joint index per open brace, −1 for an End Site
     opening = None
@@ -193,6 +197,9 @@ def read_bvh(path) -> BVH:
                 opening = len(names) - 1
             elif tok == "End":
                 take("Site")
+                if not stack:
+                    raise ValueError(f"{path}: not a BVH file: End Site outside a joint")
+                end_sites.append((stack[-1], (0.0, 0.0, 0.0)))
                 opening = -1
             elif tok == "{":
                 if opening is None:
@@ -207,6 +214,8 @@ def read_bvh(path) -> BVH:
                 values = [float(take()) for _ in range(3)]
                 if stack[-1] >= 0:
                     offsets[stack[-1]] = values
+                else:
+                    end_sites[-1] = (end_sites[-1][0], tuple(values))
             elif tok == "CHANNELS" and stack and stack[-1] >= 0:
                 channels[stack[-1]] = tuple(take() for _ in range(int(take())))
             else:
@@ -234,4 +243,5 @@ def read_bvh(path) -> BVH:
         channels=tuple(channels),
         frames=values.reshape(num_frames, width),
         frame_time=frame_time,
+        end_sites=tuple(end_sites),
     )

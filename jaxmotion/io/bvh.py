@@ -14,14 +14,19 @@ in NumPy, the usual BVH reading:
   in the file's world; on other joints they are their position in the parent's frame, as
   files with 6 channels on every joint write them);
 - ``world = world(parent) · [R | t]``; joints are at the origin of their frame.
+- an ``End Site`` is a point of its parent joint's frame at its ``OFFSET``; it is named
+  ``<parent>_End`` (``LeftAnkle_End``), so a joint map can name it like a joint (skeletons
+  such as MocapBank's end the leg at the ankle, the toe tip being an End Site).
 
 Mapping to SMPL-X
 -----------------
 A joint map ``{smplx_joint_name: bvh_joint_name}`` picks the BVH joint whose position is
-each SMPL-X joint (``joint_map``: ``"auto"``, ``"cmu"``, ``"mixamo"``, ``"smplx"``, a
-dict, or a JSON file holding the dict). Names match exactly, else ignoring case and any
+each SMPL-X joint (``joint_map``: ``"auto"``, ``"cmu"``, ``"mixamo"``, ``"mocapbank"``,
+``"smplx"``, a dict, or a JSON file holding the dict). Names match exactly, else ignoring case and any
 namespace prefix up to the last ``:`` (``mixamorig:Hips`` = ``Hips``). ``"auto"`` takes
-the first built-in map (smplx, jaxmotion, mixamo, cmu) whose every name is in the file.
+the first built-in map (smplx, jaxmotion, mixamo, cmu, mocapbank) whose every name is in the
+file (a built-in map may list alternatives for a joint, the first in the file is used, and
+mark a joint as optional, it is then filled in as below).
 
 - ``cmu`` (the CMU/cgspeed 31-joint skeleton): pelvis Hips; hips LeftUpLeg/RightUpLeg;
   knees LeftLeg/RightLeg; ankles LeftFoot/RightFoot; feet LeftToeBase/RightToeBase;
@@ -31,6 +36,12 @@ the first built-in map (smplx, jaxmotion, mixamo, cmu) whose every name is in th
 - ``mixamo``: Hips, LeftUpLeg, LeftLeg, LeftFoot, LeftToeBase, Spine, Spine1, Spine2
   (spine3), Neck, Head, LeftShoulder (collar), LeftArm, LeftForeArm, LeftHand, and the
   Right ones, with or without the ``mixamorig:`` prefix.
+- ``mocapbank`` (MocapBank's skeleton; joints named after the anatomical joint): pelvis
+  Hips; spine1 Chest; spine2 Chest2 (filled in when the file has none); neck Neck; head
+  Head; hips, knees, ankles LeftHip/LeftKnee/LeftAnkle; feet LeftToe, else the ankle's End
+  Site ``LeftAnkle_End`` (the toe tip); shoulders, elbows, wrists LeftShoulder/LeftElbow/
+  LeftWrist; and the Right ones. spine3 and the collars are filled in: MocapBank's
+  LeftCollar sits on the neck's point, SMPL-X's collar 8 cm lower and 4.5 cm to the side.
 - ``smplx``: SMPL-X's own joint names (``SMPLX_JOINT_NAMES``: ``pelvis``, ``left_hip``,
   …; the SMPL-X Blender add-on's bones), as jaxmotion's BVH export
   (:func:`jaxmotion.export.write_bvh`) writes them.
@@ -81,6 +92,7 @@ __all__ = [
     "REQUIRED_JOINTS",
     "UNITS",
     "bvh_world_positions",
+    "end_site_names",
     "load_bvh",
     "resolve_joint_map",
 ]
@@ -92,15 +104,24 @@ _CMU = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "neck": "Neck1"
 _MIXAMO = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2",
            "neck": "Neck", "head": "Head", "l_collar": "LeftShoulder",
            "r_collar": "RightShoulder"}
+_MOCAPBANK: dict[str, str | tuple[str | None, ...]] = {
+    "pelvis": "Hips", "spine1": "Chest", "spine2": ("Chest2", None), "neck": "Neck",
+    "head": "Head"}
 for _p, _side in _SIDES:
     for _k, _v in _LIMB.items():
         _CMU[_p + _k] = _MIXAMO[_p + _k] = _side + _v
+    for _k in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist"):
+        _MOCAPBANK[_p + _k] = _side + _k.capitalize()
+    _MOCAPBANK[_p + "foot"] = (_side + "Toe", _side + "Ankle_End")
 
-JOINT_MAPS: dict[str, dict[str, str]] = {
+# A value is the BVH joint's name, or a tuple of alternatives (the first in the file is
+# used; None: the joint may be absent, it is then filled in).
+JOINT_MAPS: dict[str, dict[str, str | tuple[str | None, ...]]] = {
     "smplx": dict(zip(JOINT_NAMES, SMPLX_JOINT_NAMES)),
     "jaxmotion": {n: n for n in JOINT_NAMES},
     "mixamo": _MIXAMO,
     "cmu": _CMU,
+    "mocapbank": _MOCAPBANK,
 }
 REQUIRED_JOINTS = ("pelvis", "l_foot", "r_foot", "head", "l_wrist", "r_wrist")
 UNITS = {"metres": 1.0, "cmu": 0.056444, "centimetres": 0.01, "millimetres": 0.001}
@@ -111,10 +132,12 @@ _HEIGHT_CHAIN = (7, 4, 1, 0, 3, 6, 9, 12, 15)  # l_ankle ... head: unit detectio
 
 
 def _matcher(names: tuple[str, ...]):
-    """name -> index in ``names``: exact, else case-insensitive without namespace prefix."""
-    exact = {n: i for i, n in enumerate(names)}
+    """name -> index in ``names``: exact (the first such name), else case-insensitive without
+    namespace prefix when that is unique."""
+    exact: dict[str, int] = {}
     loose: dict[str, list[int]] = {}
     for i, n in enumerate(names):
+        exact.setdefault(n, i)
         loose.setdefault(n.rpartition(":")[2].lower(), []).append(i)
 
     def find(name: str) -> int | None:
@@ -126,14 +149,27 @@ def _matcher(names: tuple[str, ...]):
     return find
 
 
+def _builtin_index(mapping: dict, find) -> np.ndarray | None:
+    """[22] BVH index per SMPL-X joint (−1: filled in) for a built-in map, or None when a
+    joint it needs is not in the file."""
+    index = np.full(NUM_JOINTS, -1)
+    for j, n in enumerate(JOINT_NAMES):
+        if n not in mapping:
+            continue
+        options = mapping[n] if isinstance(mapping[n], tuple) else (mapping[n],)
+        hit = next((find(o) for o in options if o is not None and find(o) is not None), None)
+        if hit is None and None not in options:
+            return None
+        index[j] = -1 if hit is None else hit
+    return index
+
+
 def _user_map(joint_map, where: str) -> tuple[str, dict]:
     if isinstance(joint_map, Mapping):
         if not all(isinstance(k, str) and isinstance(v, str) for k, v in joint_map.items()):
             raise MotionFormatError(f"{where}: a joint map maps SMPL-X joint names to BVH joint "
                                     "names, both strings")
         return "custom", dict(joint_map)
-    if isinstance(joint_map, str) and joint_map in JOINT_MAPS:
-        return joint_map, JOINT_MAPS[joint_map]
     path = Path(joint_map)
     if not path.is_file():
         raise MotionFormatError(
@@ -168,14 +204,23 @@ def resolve_joint_map(names, joint_map="auto", *, where: str = "BVH") -> tuple[s
     find = _matcher(names)
     if joint_map in (None, "auto"):
         for key, mapping in JOINT_MAPS.items():
-            if all(find(v) is not None for v in mapping.values()):
-                return key, np.array([find(mapping[n]) if n in mapping else -1
-                                      for n in JOINT_NAMES])
+            if (index := _builtin_index(mapping, find)) is not None:
+                return key, index
         raise MotionFormatError(
             f"{where}: the skeleton matches no built-in joint map ({', '.join(JOINT_MAPS)}); its "
             f"joints are {list(names)}. Pass joint_map= a JSON file or dict "
             '{"pelvis": "<BVH joint>", "l_hip": ..., ...} naming the BVH joint of each SMPL-X '
             f"joint ({', '.join(JOINT_NAMES)}; at least {', '.join(REQUIRED_JOINTS)}).")
+    if isinstance(joint_map, str) and joint_map in JOINT_MAPS:
+        index = _builtin_index(JOINT_MAPS[joint_map], find)
+        if index is None:
+            want = {k: v for k, v in JOINT_MAPS[joint_map].items()
+                    if _builtin_index({k: v}, find) is None}
+            raise MotionFormatError(
+                f"{where}: the built-in joint map {joint_map!r} names BVH joints not in the file "
+                f"(or not unique): {want}; the file has {list(names)}. Use joint_map='auto' or "
+                "a JSON file naming this skeleton's joints")
+        return joint_map, index
     key, mapping = _user_map(joint_map, where)
     if unknown := sorted(set(mapping) - set(JOINT_NAMES)):
         raise MotionFormatError(f"{where}: joint map {key!r} has keys {unknown} that are not "
@@ -189,11 +234,19 @@ def resolve_joint_map(names, joint_map="auto", *, where: str = "BVH") -> tuple[s
     return key, np.array([find(mapping[n]) if n in mapping else -1 for n in JOINT_NAMES])
 
 
-def bvh_world_positions(bvh: BVH, *, where: str = "BVH") -> np.ndarray:
+def end_site_names(bvh: BVH) -> tuple[str, ...]:
+    """The names :func:`load_bvh` gives the file's ``End Site`` points: ``<parent>_End``
+    (``LeftAnkle_End``, ``mixamorig:HeadTop_End_End``), file order."""
+    return tuple(f"{bvh.names[p]}_End" for p, _ in bvh.end_sites)
+
+
+def bvh_world_positions(bvh: BVH, *, where: str = "BVH", end_sites: bool = False) -> np.ndarray:
     """World position of every BVH joint in every frame: ``[T, J, 3]``, file units and axes.
 
-    See the module docstring for the kinematics. Raises MotionFormatError for unknown
-    channel names or a joint listed before its parent.
+    With ``end_sites=True`` the ``End Site`` points follow, in file order (``[T, J + E, 3]``;
+    each is its parent joint's frame moved by its ``OFFSET``). See the module docstring for
+    the kinematics. Raises MotionFormatError for unknown channel names or a joint listed
+    before its parent.
     """
     t, n = bvh.frames.shape[0], len(bvh.names)
     rot = np.empty((t, n, 3, 3))
@@ -230,7 +283,10 @@ def bvh_world_positions(bvh: BVH, *, where: str = "BVH") -> np.ndarray:
         else:
             rot[:, j] = rot[:, p] @ local_r
             pos[:, j] = pos[:, p] + np.einsum("tab,tb->ta", rot[:, p], local_t)
-    return pos
+    if not end_sites or not bvh.end_sites:
+        return pos
+    ends = [pos[:, p] + rot[:, p] @ np.asarray(off, np.float64) for p, off in bvh.end_sites]
+    return np.concatenate([pos, np.stack(ends, axis=1)], axis=1)
 
 
 def _fill_missing(joints: np.ndarray, index: np.ndarray) -> np.ndarray:
@@ -281,8 +337,9 @@ def load_bvh(path, *, up: str = "y", unit="auto", fps: float | None = None,
       up: ``"y"`` (default) or ``"z"``, the file's up axis (see the module docstring).
       unit: metres per file unit, or ``"auto"`` (detected from the skeleton's size).
       fps: resample to this rate (linear interpolation), or None for the file's rate.
-      joint_map: ``"auto"``, ``"cmu"``, ``"mixamo"``, ``"smplx"``, a dict
-        ``{smplx_joint: bvh_joint}`` or a JSON file of one.
+      joint_map: ``"auto"``, a built-in map (``"cmu"``, ``"mixamo"``, ``"mocapbank"``,
+        ``"smplx"``, ``"jaxmotion"``), a dict ``{smplx_joint: bvh_joint}`` or a JSON file of
+        one (End Sites are named ``<parent>_End``).
     Returns:
       joints ``[T, 22, 3]`` metres, z-up; no SMPL-X parameters, no texts. ``info`` records
       the joint map, the unit and the up axis used.
@@ -309,8 +366,9 @@ def load_bvh(path, *, up: str = "y", unit="auto", fps: float | None = None,
                                 f"got {bvh.frame_time}")
     if not np.isfinite(bvh.frames).all() or not np.isfinite(bvh.offsets).all():
         raise MotionFormatError(f"{where}: the file has NaN or inf values")
-    map_name, index = resolve_joint_map(bvh.names, joint_map, where=where)
-    world = bvh_world_positions(bvh, where=where)
+    names = bvh.names + end_site_names(bvh)
+    map_name, index = resolve_joint_map(names, joint_map, where=where)
+    world = bvh_world_positions(bvh, where=where, end_sites=True)
     joints = np.zeros((world.shape[0], NUM_JOINTS, 3))
     joints[:, index >= 0] = world[:, index[index >= 0]]
     joints = _fill_missing(joints, index)

@@ -57,9 +57,48 @@ normals (~6 ms). ``jaxmotion generate`` draws 60 frames (15 per second of motion
 ``write`` stage took 5.9 s for the demo on this machine, ~0.4 s of it the other files.
 """
 
-from jaxmotion.render.body import Bodies
-from jaxmotion.render.camera import CAMERA_MODES, Camera, CameraPlan, plan_cameras
-from jaxmotion.render.frames import SAMPLE_LAYOUTS, Clip, render_still, render_video
+from __future__ import annotations
+
+import contextlib
+import importlib
+import threading
+
+_EXPORTS = {"Bodies": "body", "CAMERA_MODES": "camera", "Camera": "camera",
+            "CameraPlan": "camera", "plan_cameras": "camera", "SAMPLE_LAYOUTS": "frames",
+            "Clip": "frames", "render_still": "frames", "render_video": "frames"}
 
 __all__ = ["CAMERA_MODES", "SAMPLE_LAYOUTS", "Bodies", "Camera", "CameraPlan", "Clip",
-           "plan_cameras", "render_still", "render_video"]
+           "plan_cameras", "prepare_in_background", "render_still", "render_video"]
+
+
+def __getattr__(name: str):
+    """The public names load their modules on first use: importing this package (or
+    :mod:`~jaxmotion.render.kernels` alone, as :func:`prepare_in_background` does) imports
+    nothing else."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(f"jaxmotion.render.{_EXPORTS[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'jaxmotion.render' has no attribute {name!r}")
+
+
+def prepare_in_background() -> threading.Thread:
+    """Start a daemon thread that imports numba and the SciPy parts the renderer uses and
+    loads the compiled kernels (:func:`jaxmotion.render.kernels.warm_up`), so that a
+    rendering started later finds them ready (``jaxmotion generate`` calls it before
+    sampling: ~0.5–1 s of a fresh process's start-up off the video). The thread imports no
+    other jaxmotion module; a failure there is left for the rendering itself to meet."""
+
+    def work():
+        with contextlib.suppress(Exception):  # the same error comes again where it matters
+            import scipy.ndimage  # the shadows' filters
+            import scipy.spatial  # the splat sizes
+
+            from jaxmotion.render import kernels
+
+            del scipy
+            kernels.warm_up()
+
+    thread = threading.Thread(target=work, name="jaxmotion-render-prepare", daemon=True)
+    thread.start()
+    return thread

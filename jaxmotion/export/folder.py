@@ -62,29 +62,6 @@ def write_generation(res, out, *, video: str | None = "mp4", bvh_sample: int = 0
 
 
 def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
-    """Write every output into ``tmp``: the video (the longest) on a thread of its own,
-    started first, while the other files are written beside it (its set-up, mostly one core's
-    work, overlaps theirs); an error in either is raised once both have stopped."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    if not video:
-        return _write_other_files(res, tmp, bvh_sample)
-    from jaxmotion.render.results import render_generation
-
-    with ThreadPoolExecutor(1, thread_name_prefix="jaxmotion-video") as pool:
-        # the fitted mannequins in the room (jaxmotion.render)
-        rendering = pool.submit(render_generation, res, tmp / f"motion.{video}")
-        try:
-            _write_other_files(res, tmp, bvh_sample)
-        finally:
-            error = rendering.exception()  # waits: nothing is left writing into tmp
-        if error is not None:
-            raise error
-
-
-def _write_other_files(res, tmp: Path, bvh_sample: int) -> None:
-    """``motion.npz``, ``grounding_llm.json`` (an LLM's grounding), ``motion.bvh``,
-    ``motion_smplx.npz``, ``motion.glb`` and ``viewer.html`` into ``tmp``."""
     from jaxmotion import export
 
     with open(tmp / "motion.npz", "wb") as f:
@@ -129,6 +106,10 @@ def _write_other_files(res, tmp: Path, bvh_sample: int) -> None:
                      body_pose=p["body_pose"], transl=p["transl"], betas=p["betas"],
                      fps=res.fps, scene_xyz=xyz, scene_rgb=rgb)
     heat = scene_heat(res, xyz)
+    if video:  # the fitted mannequins in the room (jaxmotion.render)
+        from jaxmotion.render.results import render_generation
+
+        render_generation(res, tmp / f"motion.{video}")
     cats = {int(o["id"]): o["category"] for o in res.scene.objects}
     steps = [{**g, "label": g["action"].replace("_", " ") + (
         f" · {cats.get(int(g['object']), 'object')} {g['object']}" if int(g["object"]) >= 0

@@ -395,6 +395,9 @@ def render_video(path, clip: Clip, *, video_fps: float | None = None,
         return path
     import imageio_ffmpeg
 
+    # ffmpeg starts by a fork, whose handlers stop NumPy's BLAS threads: nothing may be
+    # running on another thread then (a background kernels.warm_up is waited for here)
+    kernels.warm_up()
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.mp4", dir=path.parent)
     os.close(fd)

@@ -122,6 +122,108 @@ def test_surfels_cover_their_ellipse_with_plane_depths():
     assert b.sum() > 0.6 * np.pi * (0.5 * focal / 3.0) ** 2 * np.cos(1.0)
 
 
+# --------------------------------------------------------------------------- compiled kernels
+
+
+def _random_mesh(rng, n_tri=300, width=48, height=40):
+    """Small triangles scattered over a picture, at random depths (overlapping, both
+    windings), as body triangles are: pixel coordinates, depths and faces."""
+    centre = rng.uniform([-4, -4], [width + 4, height + 4], (n_tri, 1, 2))
+    xy = (centre + rng.normal(scale=rng.choice([0.6, 2.0, 6.0], (n_tri, 1, 1)),
+                              size=(n_tri, 3, 2))).reshape(-1, 2)
+    z = np.repeat(rng.uniform(1.0, 3.0, n_tri), 3) + rng.normal(scale=0.05, size=3 * n_tri)
+    faces = np.arange(3 * n_tri).reshape(-1, 3)
+    return xy, z, faces
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_compiled_triangles_are_the_numpy_rasterizers(seed):
+    """kernels.raster_triangles covers the pixels raster_triangles + resolve cover, with the
+    same winning triangle and depth, over a background it must beat (ties on depth: the
+    smaller id)."""
+    from jaxmotion.render import kernels
+
+    rng = np.random.default_rng(seed)
+    w, h = 48, 40
+    xy, z, faces = _random_mesh(rng)
+    z[:9] = 2.0  # a few exact ties in depth
+    background = np.where(rng.random((h, w)) < 0.5, np.inf,
+                          rng.uniform(1.5, 2.5, (h, w))).astype(np.float32)
+    bg_id = 0xFFFF_FFFD
+    buf = raster.keys(background.reshape(-1), np.full(w * h, bg_id))
+    raster.resolve(buf, raster.raster_triangles(xy, z, faces, w, h, id_offset=5))
+    depth, ids = background.copy(), np.full((h, w), bg_id, np.int64)
+    kernels.raster_triangles(xy[:, 0].copy(), xy[:, 1].copy(), z, faces, 0, 5, depth, ids)
+    np.testing.assert_array_equal(ids.reshape(-1), raster.id_of_keys(buf))
+    np.testing.assert_array_equal(depth.reshape(-1), raster.depth_of_keys(buf))
+    assert (ids < bg_id).sum() > 200
+
+
+def test_compiled_surfels_are_the_numpy_rasterizers():
+    """kernels.raster_surfels: raster_surfels + resolve's pixels and winners; depths to the
+    float32 rounding of a 2 × 2 solve written out rather than LAPACK's."""
+    from jaxmotion.render import kernels
+
+    rng = np.random.default_rng(4)
+    n, w, h, focal = 400, 64, 48, 60.0
+    centre = np.c_[rng.uniform(-1.2, 1.2, (n, 2)), rng.uniform(1.5, 4.0, n)]
+    normal = rng.normal(size=(n, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    normal[::7] = 0.0  # unknown: facing the camera
+    radius = rng.uniform(0.01, 0.12, n)
+    buf = np.full(w * h, raster.EMPTY_KEY)
+    raster.resolve(buf, raster.raster_surfels(centre, normal, radius, focal, 32.0, 24.0, w, h))
+    depth, ids = np.full((h, w), np.inf, np.float32), np.full((h, w), -1, np.int64)
+    kernels.raster_surfels(centre, normal, radius, focal, 32.0, 24.0, depth, ids)
+    want_ids, want_depth = raster.id_of_keys(buf), raster.depth_of_keys(buf)
+    assert (ids.reshape(-1) != want_ids).mean() < 0.002  # a rounding may flip a near-tie
+    same = ids.reshape(-1) == want_ids
+    np.testing.assert_allclose(depth.reshape(-1)[same], want_depth[same], rtol=1e-6)
+    assert (want_ids >= 0).mean() > 0.3
+
+
+def test_compiled_shading_and_compositing_are_the_numpy_formulas():
+    """vertex_colours: area-weighted vertex normals (the exporters' vertex_normals) lit by
+    the body's lights; compose: each pixel the mean of its 2 × 2 samples, a body sample the
+    vertex colours interpolated with raster.triangle_barycentrics, others the room's."""
+    from jaxmotion.export._common import vertex_normals
+    from jaxmotion.render import kernels
+
+    rng = np.random.default_rng(5)
+    verts = rng.normal(size=(60, 3)).astype(np.float32)
+    faces = np.stack([rng.choice(59, 3, replace=False) for _ in range(90)])  # 59: no face
+    base = np.array([0.5, 0.6, 0.9])
+    light, view = np.array([0.3, -0.4, 0.866]), np.array([0.0, -1.0, 0.0])
+    half = (light + view) / np.linalg.norm(light + view)
+    got = np.empty((60, 3), np.float32)
+    kernels.vertex_colours(verts, faces, base, light, view, half, got)
+    n = vertex_normals(verts, faces).astype(np.float64)
+    dots = n @ np.stack([light, view, half]).T
+    lit = 0.30 + 0.20 * (0.5 + 0.5 * n[:, 2]) + 0.55 * np.maximum(dots[:, 0], 0)
+    extra = 0.10 * (1 - np.clip(dots[:, 1], 0, 1)) ** 3 + 0.12 * np.maximum(dots[:, 2], 0) ** 40
+    want = np.clip(base * lit[:, None] + extra[:, None], 0, 1)
+    np.testing.assert_allclose(got, want, atol=2e-6)
+    np.testing.assert_allclose(got[59], base * 0.40 + 0.10, atol=1e-6)  # no face: no normal
+
+    w, h = 40, 32  # samples (2× a 20 × 16 picture)
+    xy, z, tri = _random_mesh(rng, 120, w, h)
+    colours = rng.random((len(xy), 3)).astype(np.float32)
+    depth, ids = np.full((h, w), np.inf, np.float32), np.full((h, w), 1 << 40, np.int64)
+    kernels.raster_triangles(xy[:, 0].copy(), xy[:, 1].copy(), z, tri, 0, 0, depth, ids)
+    room = rng.random((h // 2, w // 2, 3)).astype(np.float32)
+    out = np.empty_like(room)
+    kernels.compose(ids, xy[:, 0].copy(), xy[:, 1].copy(), z, tri, len(tri), len(xy), colours,
+                    room, 2, out)
+    samples = np.repeat(np.repeat(room, 2, 0), 2, 1).reshape(-1, 3)
+    body = np.flatnonzero(ids.reshape(-1) < len(tri))
+    face = ids.reshape(-1)[body]
+    bary = raster.triangle_barycentrics(xy, z, tri, face, body % w, body // w)
+    samples[body] = (bary[:, :, None] * colours[tri[face]]).sum(1)
+    want = samples.reshape(h // 2, 2, w // 2, 2, 3).mean((1, 3))
+    np.testing.assert_allclose(out, want, atol=1e-6)
+    assert len(body) > 100
+
+
 # --------------------------------------------------------------------------- bodies
 
 
@@ -357,10 +459,9 @@ def test_frames_drawn_by_threads_are_the_frames_drawn_one_by_one():
     assert list(drawn_frames(Counting(), [], workers=2)) == []
 
 
-def test_vertex_normals_by_incidence_match_the_scattered_sum():
-    """The renderer's per-frame normals (one sparse product) are the exporters' (a scattered
-    sum of area-weighted face normals), against a brute-force loop."""
-    from jaxmotion.export._common import face_incidence, vertex_normals
+def test_vertex_normals_match_a_brute_force_sum():
+    """The exporters' vertex normals: area-weighted face normals summed per vertex."""
+    from jaxmotion.export._common import vertex_normals
 
     rng = np.random.default_rng(3)
     v = rng.normal(size=(40, 3)).astype(np.float32)
@@ -371,6 +472,6 @@ def test_vertex_normals_by_incidence_match_the_scattered_sum():
         for i in (a, b, c):
             want[i] += n
     want /= np.maximum(np.linalg.norm(want, axis=1, keepdims=True), 1e-30)
-    for got in (vertex_normals(v, f), vertex_normals(v, f, face_incidence(f, 40))):
-        np.testing.assert_allclose(got, want, atol=1e-5)
-        assert np.all(got[39] == 0)
+    got = vertex_normals(v, f)
+    np.testing.assert_allclose(got, want, atol=1e-5)
+    assert np.all(got[39] == 0)

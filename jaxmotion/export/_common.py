@@ -101,38 +101,20 @@ INFERNO = np.array(
 )
 
 
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray, incidence=None) -> np.ndarray:
-    """Unit area-weighted normals of ``[V, 3]`` vertices; zero for vertices in no face.
-
-    ``incidence``: the sparse ``[V, F]`` matrix of :func:`face_incidence` for ``faces``, for
-    many frames of the same mesh (the renderer's): the face normals are then summed by one
-    sparse product instead of scattered corner by corner."""
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit area-weighted normals of ``[V, 3]`` vertices; zero for vertices in no face."""
     vertices = np.asarray(vertices)
     a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
     e1, e2 = b - a, c - a
-    fn = np.empty_like(e1)  # the cross product written out (np.cross is slower per frame)
+    fn = np.empty_like(e1)  # the cross product written out (np.cross is slower)
     fn[:, 0] = e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]
     fn[:, 1] = e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]
     fn[:, 2] = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    if incidence is None:
-        acc = np.zeros_like(vertices)
-        for c in range(3):
-            np.add.at(acc, faces[:, c], fn)
-    else:
-        acc = incidence @ fn
+    acc = np.zeros_like(vertices)
+    for c in range(3):
+        np.add.at(acc, faces[:, c], fn)
     norm = np.linalg.norm(acc, axis=1, keepdims=True)
     return acc / np.where(norm > 0, norm, 1.0)
-
-
-def face_incidence(faces: np.ndarray, num_vertices: int):
-    """Sparse ``[V, F]`` matrix with a 1 where vertex v is a corner of face f (SciPy CSR)."""
-    from scipy.sparse import csr_matrix
-
-    f = np.asarray(faces, np.int64)
-    rows = f.reshape(-1)
-    cols = np.repeat(np.arange(len(f)), 3)
-    return csr_matrix((np.ones(len(rows), np.float32), (rows, cols)),
-                      shape=(num_vertices, len(f)))
 
 
 def strongest_influences(weights: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:

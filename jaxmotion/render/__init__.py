@@ -1,10 +1,14 @@
-"""Offscreen rendering of skinned bodies in a room: NumPy and Pillow only, no GPU, no display.
+"""Offscreen rendering of skinned bodies in a room: NumPy, numba and Pillow, no GPU, no display.
 
 ``jaxmotion generate`` writes ``motion.mp4`` with it, ``jaxmotion render`` re-renders a saved
 motion, ``docs/images/make_demo.py`` draws the README picture.
 
-- :mod:`~jaxmotion.render.raster`: a z-buffer software rasterizer (triangles, surfels),
-  fragments resolved by one ``np.minimum.at`` over packed ``depth | id`` keys;
+- :mod:`~jaxmotion.render.kernels`: the z-buffer software rasterizer the frames are drawn
+  with (triangles, surfels), skinning, shading and compositing, compiled with numba (cached
+  on disk; :func:`prepare_in_background` loads them while ``generate`` samples);
+- :mod:`~jaxmotion.render.raster`: the same rasterizer in NumPy array passes (fragments
+  resolved by one ``np.minimum.at`` over packed ``depth | id`` keys), the reference the
+  kernels are tested against;
 - :mod:`~jaxmotion.render.camera`: pinhole cameras that frame the motion, fixed or following;
 - :mod:`~jaxmotion.render.scene`: the room as lit surfels (its points, with their normals or
   estimated ones), a floor plane, eye-dome outlines, the cutaway (near walls and furniture
@@ -35,31 +39,69 @@ mitsuba 3.9 + drjit           206 MB     ``llvm_ad_rgb`` failed to compile its k
                                          the body alone, 640×480, 4 samples/pixel (no room)
 bpy (Blender as a module)     —          not measured: wheels of ~300 MB for one Python
                                          version, and it needs X11/GL system libraries
-this package (NumPy)          0          runs wherever NumPy and Pillow do; 640×480 with the
-                                         room, shadows and 2× antialiasing (numbers below)
+this package (NumPy, numba)   ~60 MB     numba + llvmlite wheels (Linux, macOS, Windows);
+                                         640×480 with the room, shadows and 2× antialiasing
+                                         (numbers below)
 ============================  =========  =====================================================
 
 A GPU-less, display-less machine installed by ``pip`` alone has no OpenGL implementation,
 so every OpenGL route needs system packages (``libegl1``, ``libgl1-mesa-dri`` or
 ``libosmesa6``); the ray tracers are slower than the target before a room is added. A
-software rasterizer in NumPy needs nothing new and is fast enough because the work is small:
-one body of 48k triangles (most a few pixels wide), a room drawn once per clip.
+software rasterizer needs nothing outside pip and is fast enough because the work is small:
+one body of 48k triangles (most a few pixels wide), a room drawn once per clip. Written as
+NumPy array passes it took 40–50 ms a frame; the same arithmetic as compiled loops
+(:mod:`~jaxmotion.render.kernels`, the same pixels) takes 11–15 ms.
 
-Speed (``python benchmarks/render.py``: the demo room, 60,000 points, a 120-frame sitting-down
-motion, MP4; this 2-core machine with its other core busy with other work, load average ~2.3):
-640×480 13.2 frames/s drawn, 11.8 end to end (the room drawn once, ~0.5 s, and the H.264
-encoding, which ffmpeg does in its own process, included); 1280×720 7.3 and 6.7 frames/s. The
-joints-only drawing (:func:`jaxmotion.export.render_motion_video` without a body) ran at 81
-frames/s in the same run. With more work on the machine (load average ~6) 640×480
-fell to 9.2 drawn / 7.3 end to end. A frame at 640×480 costs, of CPU: rasterising the body at
-2× (~15-25 ms), its shading and barycentrics (~15 ms), the shadows (~5-10 ms), skinning and
-normals (~6 ms). ``jaxmotion generate`` draws 60 frames (15 per second of motion): its
-``write`` stage took 5.9 s for the demo on this machine, ~0.4 s of it the other files.
+Speed (``python benchmarks/render.py --sizes 640x480 --repeats 3``: the demo room, 60,000
+points, a 120-frame sitting-down motion, MP4; this 2-core machine with other work on it, load
+average ~4.5, both in one session): drawing 73.9 frames/s (the NumPy passes: 18.1), MP4 end
+to end 53.9 frames/s (17.4), set-up 0.27 s (0.52). ``jaxmotion generate`` draws 60 frames
+(15 per second of motion) after writing the other files: its ``write`` stage took 1.4–1.8 s
+with the video, ~0.5 s of it the other files (the NumPy renderer: 4.5–5.9 s).
 """
 
-from jaxmotion.render.body import Bodies
-from jaxmotion.render.camera import CAMERA_MODES, Camera, CameraPlan, plan_cameras
-from jaxmotion.render.frames import SAMPLE_LAYOUTS, Clip, render_still, render_video
+from __future__ import annotations
+
+import contextlib
+import importlib
+import threading
+
+_EXPORTS = {"Bodies": "body", "CAMERA_MODES": "camera", "Camera": "camera",
+            "CameraPlan": "camera", "plan_cameras": "camera", "SAMPLE_LAYOUTS": "frames",
+            "Clip": "frames", "render_still": "frames", "render_video": "frames"}
 
 __all__ = ["CAMERA_MODES", "SAMPLE_LAYOUTS", "Bodies", "Camera", "CameraPlan", "Clip",
-           "plan_cameras", "render_still", "render_video"]
+           "plan_cameras", "prepare_in_background", "render_still", "render_video"]
+
+
+def __getattr__(name: str):
+    """The public names load their modules on first use: importing this package (or
+    :mod:`~jaxmotion.render.kernels` alone, as :func:`prepare_in_background` does) imports
+    nothing else."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(f"jaxmotion.render.{_EXPORTS[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'jaxmotion.render' has no attribute {name!r}")
+
+
+def prepare_in_background() -> threading.Thread:
+    """Start a daemon thread that imports numba and the SciPy parts the renderer uses and
+    loads the compiled kernels (:func:`jaxmotion.render.kernels.warm_up`), so that a
+    rendering started later finds them ready (``jaxmotion generate`` calls it before
+    sampling: ~0.5–1 s of a fresh process's start-up off the video). The thread imports no
+    other jaxmotion module; a failure there is left for the rendering itself to meet."""
+
+    def work():
+        with contextlib.suppress(Exception):  # the same error comes again where it matters
+            import scipy.ndimage  # the shadows' filters
+            import scipy.spatial  # the splat sizes
+
+            from jaxmotion.render import kernels
+
+            del scipy
+            kernels.warm_up()
+
+    thread = threading.Thread(target=work, name="jaxmotion-render-prepare", daemon=True)
+    thread.start()
+    return thread

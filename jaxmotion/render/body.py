@@ -9,8 +9,8 @@ arrays the caller posed (``body_forward(...).vertices``) or from SMPL-X paramete
 in NumPy (:meth:`Bodies.from_smplx`): the same linear blend skinning as
 :func:`jaxmotion.body.lbs` (pose correctives included for a user's SMPL-X model), with the
 kinematic chain of all frames computed once and the vertices of a frame blended when it is
-drawn. No XLA program is compiled (each would cost a fresh process ~0.5 s) and a long motion
-never holds all its meshes in memory. Betas other than the model's anchor use its linear shape
+drawn (:func:`jaxmotion.render.kernels.skin`). No XLA program is compiled (each would cost a
+fresh process ~0.5 s) and a long motion never holds all its meshes in memory. Betas other than the model's anchor use its linear shape
 space (exact for a user's SMPL-X model; first-order for the mannequin, see
 :mod:`jaxmotion.body.model`).
 
@@ -124,44 +124,34 @@ class Bodies:
         model, rest, local = skin.models[0], skin.rest, skin.local
         k = len(rest)
         affine = skin.affine.reshape(*skin.affine.shape[:3], 12)
-        influence, weight, blocks, perm = _influences(np.asarray(model.weights, np.float32))
+        influence, weight, count = _influences(np.asarray(model.weights, np.float32))
         posedirs = np.asarray(model.posedirs, np.float64)
         eye = np.eye(3)
+        rest32 = [np.ascontiguousarray(r[0], np.float32) for r in rest]
 
         def frame(i: int) -> np.ndarray:
+            from jaxmotion.render import kernels
+
             out = np.empty((k, len(influence), 3), np.float32)
             for s in range(k):
-                v = rest[s][0]
+                v = rest32[s]
                 if posedirs.shape[-1]:
                     feat = (local[s, i, 1:22] - eye).reshape(-1)[: posedirs.shape[-1]]
-                    v = v + posedirs @ feat
-                v = v.astype(np.float32)[perm]
-                a = affine[s, i]
-                m = a[influence[:, 0]]  # blended [G | t] per vertex (sorted by influences)
-                for c, start in enumerate(blocks[1:], 1):  # rows from `start` have > c
-                    if c == 1:
-                        m[start:] *= weight[start:, :1]
-                    m[start:] += weight[start:, c : c + 1] * a[influence[start:, c]]
-                m = m.reshape(-1, 3, 4)
-                out[s, perm] = (m[:, :, 0] * v[:, :1] + m[:, :, 1] * v[:, 1:2]
-                                + m[:, :, 2] * v[:, 2:] + m[:, :, 3])
+                    v = (rest[s][0] + posedirs @ feat).astype(np.float32)
+                kernels.skin(v, affine[s, i], influence, weight, count, out[s])
             return out
 
         return Bodies(np.asarray(model.faces, np.int64), k, local.shape[1], frame)
 
 
 def _influences(weights: np.ndarray, most: int = 8):
-    """The skinning weights as a few gathers: vertices sorted by their count of influences
-    (``perm [V]``), and for each its joints ``[V, C]`` and weights ``[V, C]``, strongest first
-    (C ≤ ``most``; renormalised when cut); ``blocks[c]`` is the first sorted row with more
-    than c influences. Most of the mannequin's vertices follow one joint (a plain gather);
-    blending needs no BLAS call, whose threads cost more than they save on a busy machine."""
+    """Each vertex's strongest joints ``[V, C]`` int64 and their weights ``[V, C]`` float32,
+    strongest first, and how many it has, ``count [V]`` (C ≤ ``most``; weights renormalised
+    when cut). Most of the mannequin's vertices follow one joint: their map is taken as it is
+    (:func:`jaxmotion.render.kernels.skin`)."""
     count = np.minimum((weights > 0).sum(1), most)
-    perm = np.argsort(count, kind="stable")
-    w = weights[perm]
     c = max(1, int(count.max()))
-    idx = np.argsort(-w, axis=1, kind="stable")[:, :c]
-    ww = np.take_along_axis(w, idx, axis=1).astype(np.float32)
+    idx = np.ascontiguousarray(np.argsort(-weights, axis=1, kind="stable")[:, :c])
+    ww = np.take_along_axis(weights, idx, axis=1).astype(np.float32)
     ww /= ww.sum(1, keepdims=True)
-    blocks = np.searchsorted(count[perm], np.arange(c), side="right")
-    return idx, ww, blocks, perm
+    return idx.astype(np.int64), np.ascontiguousarray(ww), count.astype(np.int64)

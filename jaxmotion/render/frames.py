@@ -32,10 +32,10 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion._atomic import atomic_open
-from jaxmotion.export._common import PALETTE, face_incidence, vertex_normals
-from jaxmotion.render import raster
+from jaxmotion.export._common import PALETTE
+from jaxmotion.render import kernels
 from jaxmotion.render.body import Bodies
-from jaxmotion.render.camera import ELEVATION_DEG, Camera, frame_box, plan_cameras, rotate
+from jaxmotion.render.camera import ELEVATION_DEG, Camera, frame_box, plan_cameras
 from jaxmotion.render.scene import CutawayHoles, SceneLayer, ShadowMap, light_direction
 
 __all__ = ["SAMPLE_LAYOUTS", "SUPERSAMPLE", "Clip", "body_colour", "drawn_frames", "render_still",
@@ -110,8 +110,9 @@ class Clip:
                                 floor=floor)
         self.top = float(self.joints[..., 2].max())
         self.faces = bodies.faces
-        self._incidence = None
         self._room = None
+        self._marks = None  # the caption's and the legend's drawing (see _static_marks)
+        self._mark_cache: dict = {}
         self._room_supersample = max(1.0, float(room_supersample))
 
     # ---------------------------------------------------------------- background
@@ -129,7 +130,6 @@ class Clip:
                 ss = round(s) if s == round(s) else 1
                 self._room = self.scene.background(base, centre, reach, self.top, supersample=ss,
                                                    holes=CutawayHoles(base, poses))
-                self._room.keep_world = True  # every frame's shadows fall on it
             else:  # a follow camera crops frames out of a picture drawn at its zoom
                 scale = min(self.plan.zoom, math.sqrt(MAX_ROOM_PIXELS / (base.width * base.height)))
                 big = base.scaled(max(1.0, scale))  # the holes on the picture's own pixels
@@ -168,10 +168,7 @@ class Clip:
 
     def _shadows(self, rgb: np.ndarray, bg, verts: np.ndarray) -> None:
         shadow = ShadowMap(verts[:, ::_SHADOW_STRIDE].reshape(-1, 3), self.light)
-        pix, xyz = bg.receivers(*shadow.box, top=float(verts[..., 2].max()))
-        if len(pix):
-            factor, inside = shadow.factor(xyz)
-            rgb.reshape(-1, 3)[pix[inside]] *= factor[:, None]
+        shadow.darken(rgb, bg, top=float(verts[..., 2].max()))
 
     def _bodies(self, rgb: np.ndarray, depth: np.ndarray, cam: Camera, verts: np.ndarray,
                 members: list[int]) -> None:
@@ -179,116 +176,154 @@ class Clip:
         s = SUPERSAMPLE
         big = cam.scaled(s)
         h, w = depth.shape
-        proj = [big.project(verts[k]) for k in members]
-        xy_all = np.concatenate([p[0][p[1] > 1e-3] for p in proj])
-        if not len(xy_all):
+        nv, nf = verts.shape[1], len(self.faces)
+        pts = np.ascontiguousarray(verts[members], np.float32).reshape(-1, 3)
+        x, y, z = np.empty(len(pts)), np.empty(len(pts)), np.empty(len(pts))
+        kernels.project(pts, big.eye, big.rot, float(big.focal), float(big.cx), float(big.cy),
+                        0.0, 0.0, x, y, z)
+        front = z > 1e-3
+        if not front.any():
             return
-        x0 = max(0, math.floor(xy_all[:, 0].min() / s) - 1)
-        y0 = max(0, math.floor(xy_all[:, 1].min() / s) - 1)
-        x1 = min(w, math.ceil(xy_all[:, 0].max() / s) + 1)
-        y1 = min(h, math.ceil(xy_all[:, 1].max() / s) + 1)
+        x0 = max(0, math.floor(x[front].min() / s) - 1)
+        y0 = max(0, math.floor(y[front].min() / s) - 1)
+        x1 = min(w, math.ceil(x[front].max() / s) + 1)
+        y1 = min(h, math.ceil(y[front].max() / s) + 1)
         if x1 <= x0 or y1 <= y0:
             return
-        rw, rh = (x1 - x0) * s, (y1 - y0) * s
-        shift = np.array([x0 * s, y0 * s], np.float64)
-        nf = len(self.faces)
-        frags = raster.Fragments.concat([
-            raster.raster_triangles(xy - shift, z, self.faces, rw, rh, id_offset=i * nf)
-            for i, (xy, z) in enumerate(proj)])
-        region_depth = np.repeat(np.repeat(depth[y0:y1, x0:x1], s, 0), s, 1).reshape(-1)
-        buf = raster.keys(region_depth, np.full(region_depth.shape, _BG_ID))
-        raster.resolve(buf, frags)
-        ids = raster.id_of_keys(buf)
-        pixels = np.flatnonzero(ids < len(members) * nf)
-        if not len(pixels):
+        x -= x0 * s
+        y -= y0 * s
+        # the region's z-buffer starts as the room's depth, each pixel's s × s samples
+        buf_depth = np.repeat(np.repeat(depth[y0:y1, x0:x1], s, 0), s, 1)
+        ids = np.full(buf_depth.shape, _BG_ID, np.int64)
+        for i in range(len(members)):
+            kernels.raster_triangles(x, y, z, self.faces, i * nv, i * nf, buf_depth, ids)
+        if not (ids < len(members) * nf).any():
             return
-        colour = np.repeat(np.repeat(rgb[y0:y1, x0:x1], s, 0), s, 1).reshape(-1, 3)
-        if self._incidence is None:
-            self._incidence = face_incidence(self.faces, verts.shape[1])
-        owner = ids[pixels] // nf
+        colours = np.empty((len(pts), 3), np.float32)
+        view = -cam.rot[2]
+        half = self.light + view
+        half /= np.linalg.norm(half)
         for i, k in enumerate(members):
-            sel = pixels[owner == i]
-            if not len(sel):
-                continue
-            face = ids[sel] - i * nf
-            normals = vertex_normals(verts[k], self.faces, self._incidence)
-            vc = _shade_body(normals, body_colour(k), self.light, cam.rot[2])
-            # Gouraud: vertex colours interpolated across each triangle
-            xy, z = proj[i]
-            bary = raster.triangle_barycentrics(xy - shift, z, self.faces, face, sel % rw,
-                                                sel // rw).astype(np.float32)
-            tri = self.faces[face]
-            colour[sel] = (bary[:, :1] * vc[tri[:, 0]] + bary[:, 1:2] * vc[tri[:, 1]]
-                           + bary[:, 2:] * vc[tri[:, 2]])
-        rgb[y0:y1, x0:x1] = _reduce(colour.reshape(rh, rw, 3), s)
+            kernels.vertex_colours(pts[i * nv:(i + 1) * nv], self.faces, body_colour(k),
+                                   self.light, view, half, colours[i * nv:(i + 1) * nv])
+        region = rgb[y0:y1, x0:x1]
+        kernels.compose(ids, x, y, z, self.faces, nf, nv, colours, region, s, region)
 
     def _annotate(self, img: np.ndarray, f: int, tile_samples) -> np.ndarray:
-        from PIL import Image, ImageDraw
+        """Draw the caption, the clock and (several samples) the legend on ``img`` (in place;
+        returned). Each group of marks is drawn by Pillow on the crop of the picture it
+        covers, which gives the pixels a drawing on the whole picture gives; the caption and
+        the legend, the same on every frame, are drawn once and reused while the pixels
+        under them are unchanged (a body passing under redraws them)."""
+        caption, legend = self._static_marks(tile_samples is not None)
+        for ops, cache in ((caption, self._mark_cache), (self._clock_marks(f), None),
+                           (legend, self._mark_cache)):
+            if ops:
+                _draw_marks(img, ops, cache)
+        return img
 
-        from jaxmotion.export.video import caption_font, wrap_text
+    def _static_marks(self, grid: bool):
+        """The caption's and the legend's drawing operations (see :func:`_draw_marks`)."""
+        if self._marks is None:
+            from jaxmotion.export.video import caption_font, wrap_text
 
-        im = Image.fromarray(img)
-        draw = ImageDraw.Draw(im, "RGBA")
-        scale = max(self.width, self.height) / 640
-        if self.text:
-            font = caption_font(13.0 * scale)
-            lines = wrap_text(self.text, font, 0.9 * self.width)
-            pos = (0.02 * self.width, 0.02 * self.height)
-            box = draw.multiline_textbbox(pos, "\n".join(lines), font=font)
-            pad = 4 * scale
-            draw.rectangle([box[0] - pad, box[1] - pad, box[2] + pad, box[3] + pad],
-                           fill=(255, 255, 255, 190))
-            draw.multiline_text(pos, "\n".join(lines), fill=(20, 20, 20), font=font)
-        font = caption_font(11.0 * scale)
+            scale = max(self.width, self.height) / 640
+            caption = []
+            if self.text:
+                font = caption_font(13.0 * scale)
+                text = "\n".join(wrap_text(self.text, font, 0.9 * self.width))
+                pos = (0.02 * self.width, 0.02 * self.height)
+                box = _scratch_draw().multiline_textbbox(pos, text, font=font)
+                pad = 4 * scale
+                caption = [("rect", (box[0] - pad, box[1] - pad, box[2] + pad, box[3] + pad),
+                            (255, 255, 255, 190)), ("mtext", pos, text, (20, 20, 20), font)]
+            legend = []
+            k = self.bodies.num_samples
+            if k > 1:
+                font = caption_font(11.0 * scale)
+                tw, th = self.tile
+                for i in range(k):
+                    colour = tuple(round(255 * c) for c in PALETTE[i % len(PALETTE)])
+                    if not grid:  # overlay: a legend at the bottom left
+                        pos = (0.02 * self.width, 0.98 * self.height - (k - 1 - i) * 14 * scale)
+                    else:
+                        pos = ((i % self.grid[0]) * tw + 6 * scale,
+                               (i // self.grid[0] + 1) * th - 4 * scale)
+                    legend.append(("text", pos, f"sample {i}", colour, font, "ld"))
+            self._marks = (tuple(caption), tuple(legend))
+        return self._marks
+
+    def _clock_marks(self, f: int):
+        """The clock's drawing operations at frame ``f``: the time on a translucent box."""
+        from jaxmotion.export.video import caption_font
+
+        font = caption_font(11.0 * max(self.width, self.height) / 640)
         clock = f"{f / self.fps:5.2f} s"
         pos = (0.98 * self.width, 0.98 * self.height)
-        box = draw.textbbox(pos, clock, font=font, anchor="rd")
-        draw.rectangle([box[0] - 3, box[1] - 3, box[2] + 3, box[3] + 3], fill=(255, 255, 255, 190))
-        draw.text(pos, clock, fill=(20, 20, 20), font=font, anchor="rd")
-        k = self.bodies.num_samples
-        if k > 1:
-            tw, th = self.tile
-            for i in range(k):
-                colour = tuple(round(255 * c) for c in PALETTE[i % len(PALETTE)])
-                if tile_samples is None:  # overlay: a legend at the bottom left
-                    pos = (0.02 * self.width, 0.98 * self.height - (k - 1 - i) * 14 * scale)
-                else:
-                    pos = ((i % self.grid[0]) * tw + 6 * scale, (i // self.grid[0] + 1) * th
-                           - 4 * scale)
-                draw.text(pos, f"sample {i}", fill=colour, font=font, anchor="ld")
-        return np.asarray(im)
+        box = _scratch_draw().textbbox(pos, clock, font=font, anchor="rd")
+        return [("rect", (box[0] - 3, box[1] - 3, box[2] + 3, box[3] + 3), (255, 255, 255, 190)),
+                ("text", pos, clock, (20, 20, 20), font, "rd")]
 
 
-def _shade_body(n: np.ndarray, base: np.ndarray, light: np.ndarray, forward: np.ndarray):
-    """Colours ``[M, 3]`` of body pixels with unit normals ``n [M, 3]``."""
-    view = -forward
-    half = light + view
-    half /= np.linalg.norm(half)
-    n = np.asarray(n, np.float32)
-    dots = rotate(n, np.stack([light, view, half]).astype(np.float32))
-    key = np.maximum(dots[:, 0], 0.0)
-    hemi = 0.5 + 0.5 * n[:, 2]
-    rim = (1.0 - np.clip(dots[:, 1], 0.0, 1.0)) ** 3
-    spec = np.maximum(dots[:, 2], 0.0) ** 40
-    c = base[None, :] * (0.30 + 0.20 * hemi + 0.55 * key)[:, None]
-    c += (0.10 * rim + 0.12 * spec)[:, None]
-    return np.clip(c, 0.0, 1.0).astype(np.float32)
+def _scratch_draw():
+    """An ImageDraw to measure text with (its picture is never drawn on)."""
+    from PIL import Image, ImageDraw
+
+    return ImageDraw.Draw(Image.new("RGB", (1, 1)), "RGBA")
 
 
-def _reduce(img: np.ndarray, s: int) -> np.ndarray:
-    """Mean of each ``s × s`` block of ``img [s·h, s·w, C]`` (strided sums: faster than
-    ``reshape(...).mean``)."""
-    out = img[::s, ::s].copy()
-    for dy in range(s):
-        for dx in range(s):
-            if dy or dx:
-                out += img[dy::s, dx::s]
-    out *= 1.0 / (s * s)
-    return out
+def _draw_marks(img: np.ndarray, ops, cache: dict | None) -> None:
+    """Draw ``ops`` (``("rect", box, fill)``, ``("text", pos, text, fill, font, anchor)``,
+    ``("mtext", pos, text, fill, font)``, in picture coordinates) on ``img [H, W, 3]`` uint8
+    in place, through a Pillow picture of the crop they cover only: its corner on even
+    pixels (no coordinate changes its rounding when moved there), a margin around the
+    marks' boxes. With ``cache`` (a dict; ``ops`` a tuple, the same every frame) a crop whose
+    pixels are those of the last drawing takes its result back."""
+    from PIL import Image, ImageDraw
+
+    measure = _scratch_draw()
+    boxes = []
+    for op in ops:
+        if op[0] == "rect":
+            boxes.append(op[1])
+        elif op[0] == "text":
+            boxes.append(measure.textbbox(op[1], op[2], font=op[4], anchor=op[5]))
+        else:
+            boxes.append(measure.multiline_textbbox(op[1], op[2], font=op[4]))
+    lo = np.floor(np.min([b[:2] for b in boxes], 0)).astype(int) - 4
+    hi = np.ceil(np.max([b[2:] for b in boxes], 0)).astype(int) + 4
+    h, w = img.shape[:2]
+    x0, y0 = max(0, lo[0] - lo[0] % 2), max(0, lo[1] - lo[1] % 2)
+    x1, y1 = min(w, hi[0]), min(h, hi[1])
+    if x1 <= x0 or y1 <= y0:
+        return
+    crop = img[y0:y1, x0:x1]
+    key = (ops, x0, y0) if cache is not None else None
+    known = None if key is None else cache.get(key)
+    if known is not None and np.array_equal(known[0], crop):
+        crop[...] = known[1]
+        return
+    before = crop.copy()
+    im = Image.fromarray(before)
+    draw = ImageDraw.Draw(im, "RGBA")
+    for op in ops:
+        if op[0] == "rect":
+            b = op[1]
+            draw.rectangle([b[0] - x0, b[1] - y0, b[2] - x0, b[3] - y0], fill=op[2])
+        elif op[0] == "text":
+            draw.text((op[1][0] - x0, op[1][1] - y0), op[2], fill=op[3], font=op[4],
+                      anchor=op[5])
+        else:
+            draw.multiline_text((op[1][0] - x0, op[1][1] - y0), op[2], fill=op[3], font=op[4])
+    crop[...] = np.asarray(im)
+    if key is not None:
+        cache[key] = (before, crop.copy())
 
 
 def _to_uint8(rgb: np.ndarray) -> np.ndarray:
-    return np.clip(rgb * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    out = np.empty(rgb.shape, np.uint8)
+    kernels.to_uint8(rgb, out)
+    return out
 
 
 # --------------------------------------------------------------------------- writers
@@ -360,6 +395,9 @@ def render_video(path, clip: Clip, *, video_fps: float | None = None,
         return path
     import imageio_ffmpeg
 
+    # ffmpeg starts by a fork, whose handlers stop NumPy's BLAS threads: nothing may be
+    # running on another thread then (a background kernels.warm_up is waited for here)
+    kernels.warm_up()
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.mp4", dir=path.parent)
     os.close(fd)

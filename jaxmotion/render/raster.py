@@ -1,5 +1,9 @@
 """A z-buffer software rasterizer in NumPy: triangles and disc splats into fragments.
 
+The renderer draws with :mod:`jaxmotion.render.kernels`, the same arithmetic as compiled
+loops; this module is their reference in array passes (the tests check that the kernels cover
+the same pixels with the same winners and depths).
+
 Everything works on *fragments*: one candidate pixel of one primitive, as a flat pixel index
 and a 64-bit key ``depth_bits << 32 | primitive_id``. A positive float32's bit pattern read as
 an unsigned integer grows with the float, so the smallest key of a pixel is its nearest

@@ -2,8 +2,9 @@
 
 :class:`SceneLayer` prepares a room once per clip (host NumPy):
 
-- **splat sizes**: each point's disc radius is its distance to its 4th-nearest neighbour
-  (clipped to [4 mm, 6 cm]), so a surface sampled at any density reads as closed;
+- **splat sizes**: each point's disc radius is its distance to its 6th-nearest neighbour
+  (clipped to [4 mm, 10 cm]), so a surface sampled at any density reads as closed; found for
+  the points a camera draws only (:meth:`SceneLayer.radii`);
 - **normals**: the scene's own where it has them, else the smallest principal axis of the 12
   nearest neighbours (sign unknown: the points are lit two-sided; upright surfaces near the
   sides of the points' box, a scan's walls, are turned to face the room);
@@ -29,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jaxmotion.render import raster
+from jaxmotion.render import kernels
 from jaxmotion.render.camera import Camera
 
 __all__ = ["FLOOR_RGB", "HIGHLIGHT", "BackgroundPicture", "CutawayHoles", "SceneLayer",
@@ -61,54 +62,10 @@ class BackgroundPicture:
     """The room drawn from one camera ``cam``: ``rgb [H, W, 3]`` float32 in [0, 1] and
     ``depth [H, W]`` float32 (inf where nothing is drawn)."""
 
-    __slots__ = ("_world", "cam", "depth", "keep_world", "rgb")
+    __slots__ = ("cam", "depth", "rgb")
 
-    def __init__(self, cam: Camera, rgb, depth, keep_world: bool = False):
+    def __init__(self, cam: Camera, rgb, depth):
         self.cam, self.rgb, self.depth = cam, rgb, depth
-        self.keep_world = keep_world  # a picture used for many frames: world points kept
-        self._world = None
-
-    def _points(self, r, c, d) -> np.ndarray:
-        """World points ``[M, 3]`` float32 at rows ``r``, columns ``c`` and depths ``d``."""
-        cam = self.cam
-        u = ((c + 0.5 - cam.cx) / cam.focal).astype(np.float32)
-        v = ((r + 0.5 - cam.cy) / cam.focal).astype(np.float32)
-        rot = cam.rot.astype(np.float32)
-        return cam.eye.astype(np.float32) + d[:, None] * (u[:, None] * rot[0]
-                                                          + v[:, None] * rot[1] + rot[2])
-
-    def receivers(self, lo, hi, top: float) -> tuple[np.ndarray, np.ndarray]:
-        """The pixels that show a world point inside the box ``lo ≤ (x, y) < hi``, z ≤ ``top``:
-        flat indices ``[R]`` and the points ``[R, 3]`` float32 (from the depth: each pixel's
-        own point of a surface, not its splat's centre). Only the box's picture is searched."""
-        cam = self.cam
-        box = np.array([[(lo[0], hi[0])[k & 1], (lo[1], hi[1])[k >> 1 & 1], (-0.1, top)[k >> 2]]
-                        for k in range(8)])
-        xy, z = cam.project(box)
-        if np.all(z > 1e-3):
-            x0, y0 = np.maximum(np.floor(xy.min(0)).astype(int), 0)
-            x1, y1 = np.minimum(np.ceil(xy.max(0)).astype(int) + 1, [cam.width, cam.height])
-        else:
-            x0 = y0 = 0
-            x1, y1 = cam.width, cam.height
-        if x1 <= x0 or y1 <= y0:
-            return np.zeros(0, np.int64), np.zeros((0, 3), np.float32)
-        if self.keep_world:
-            if self._world is None:
-                rr, cc = np.nonzero(np.isfinite(self.depth))
-                world = np.full((*self.depth.shape, 3), np.nan, np.float32)
-                world[rr, cc] = self._points(rr, cc, self.depth[rr, cc])
-                self._world = world
-            w = self._world[y0:y1, x0:x1]
-            r, c = np.nonzero(np.isfinite(w[..., 0]))
-            p = w[r, c]
-        else:
-            d = self.depth[y0:y1, x0:x1]
-            r, c = np.nonzero(np.isfinite(d))
-            p = self._points(r + y0, c + x0, d[r, c])
-        inside = np.flatnonzero((p[:, 0] >= lo[0]) & (p[:, 0] < hi[0]) & (p[:, 1] >= lo[1])
-                                & (p[:, 1] < hi[1]) & (p[:, 2] <= top))
-        return (r[inside] + y0) * cam.width + c[inside] + x0, p[inside]
 
     def crop(self, cam: Camera) -> BackgroundPicture:
         """The picture seen by ``cam``: this camera's eye and direction, another focal length
@@ -155,24 +112,25 @@ class SceneLayer:
         n = len(self.xyz)
         rgb = np.asarray(rgb, np.float64)
         self.floor = floor
-        self.radius = np.full(n, 0.02)
+        # splat radii: 2 cm for a handful of points, else found when first drawn (radii)
+        self._radius = np.full(n, 0.02 if n < 8 else np.nan)
+        self._tree = None
         normal = np.zeros((n, 3)) if normal is None else np.asarray(normal, np.float64)
         self.oriented = np.abs(normal).sum(1) > 0  # the scene's own normals: facing known
-        if n >= 8:
+        unknown = np.abs(normal).sum(1) == 0
+        if n >= 8 and unknown.any():
             from scipy.spatial import cKDTree
 
-            tree = cKDTree(self.xyz)
-            unknown = np.abs(normal).sum(1) == 0
-            d, nb = tree.query(self.xyz, k=13 if unknown.any() else 7)
-            self.radius = np.clip(d[:, 6], 0.004, 0.10)
-            if unknown.any():
-                normal = normal.copy()
-                normal[unknown] = _pca_normals(self.xyz, nb[unknown])
-                walls = _wall_points(self.xyz, normal) & unknown
-                centre = (self.xyz.min(0) + self.xyz.max(0)) / 2
-                inward = ((centre - self.xyz[walls])[:, :2] * normal[walls, :2]).sum(1)
-                normal[walls] *= np.where(inward < 0, -1.0, 1.0)[:, None]
-                self.oriented |= walls
+            self._tree = cKDTree(self.xyz)
+            d, nb = self._tree.query(self.xyz, k=13)
+            self._radius = np.clip(d[:, 6], 0.004, 0.10)
+            normal = normal.copy()
+            normal[unknown] = _pca_normals(self.xyz, nb[unknown])
+            walls = _wall_points(self.xyz, normal) & unknown
+            centre = (self.xyz.min(0) + self.xyz.max(0)) / 2
+            inward = ((centre - self.xyz[walls])[:, :2] * normal[walls, :2]).sum(1)
+            normal[walls] *= np.where(inward < 0, -1.0, 1.0)[:, None]
+            self.oriented |= walls
         self.normal = normal
         lit = np.abs(normal @ light)
         shade = np.where(np.abs(normal).sum(1) > 0, 0.62 + 0.45 * lit, 0.9)
@@ -182,6 +140,22 @@ class SceneLayer:
             rgb = rgb.copy()
             rgb[h] = 0.3 * rgb[h] + 0.7 * HIGHLIGHT
         self.colour = np.clip(rgb * shade[:, None], 0.0, 1.0).astype(np.float32)
+
+    def radii(self, sel: np.ndarray) -> np.ndarray:
+        """The splat radii ``[len(sel)]`` of the points ``sel``: each one's distance to its
+        6th-nearest neighbour, clipped to [4 mm, 10 cm]; found for the points drawn only,
+        once (a camera sees about half of a room's points)."""
+        r = self._radius[sel]
+        todo = np.isnan(r)
+        if todo.any():
+            from scipy.spatial import cKDTree
+
+            if self._tree is None:
+                self._tree = cKDTree(self.xyz)
+            d, _ = self._tree.query(self.xyz[sel[todo]], k=7)
+            r[todo] = np.clip(d[:, 6], 0.004, 0.10)
+            self._radius[sel[todo]] = r[todo]
+        return r
 
     def visible(self, cam: Camera, target: np.ndarray, reach: float, top: float,
                 holes: CutawayHoles | None = None) -> np.ndarray:
@@ -225,18 +199,17 @@ class SceneLayer:
         big = cam.scaled(supersample) if supersample > 1 else cam
         w, h = big.width, big.height
         sel = self.visible(cam, target, reach, top, holes)
-        frags = raster.raster_surfels(big.view(self.xyz[sel]), self.normal[sel] @ big.rot.T,
-                                      self.radius[sel], big.focal, big.cx, big.cy, w, h)
-        buf = np.full(w * h, raster.EMPTY_KEY, np.uint64)
+        depth = np.full(w * h, np.inf, np.float32)
+        ids = np.full(w * h, -1, np.int64)
         if self.floor:
             floor_depth = _floor_depth(big)
             ok = np.flatnonzero(np.isfinite(floor_depth))
             # the plane lies 1 cm deeper than it is, so the scene's own floor points win
-            buf[ok] = raster.keys(floor_depth[ok] + np.float32(0.01),
-                                  np.full(len(ok), _FLOOR_ID))
-        raster.resolve(buf, frags)
-        depth = raster.depth_of_keys(buf)
-        ids = raster.id_of_keys(buf)
+            depth[ok] = floor_depth[ok] + np.float32(0.01)
+            ids[ok] = _FLOOR_ID
+        kernels.raster_surfels(big.view(self.xyz[sel]), self.normal[sel] @ big.rot.T,
+                               self.radii(sel), float(big.focal), float(big.cx),
+                               float(big.cy), depth.reshape(h, w), ids.reshape(h, w))
         point = np.flatnonzero((ids >= 0) & (ids < len(sel)))
         rgb = np.empty((w * h, 3), np.float32)
         rgb[:] = SKY
@@ -416,26 +389,28 @@ class ShadowMap:
         else:
             self.box = (self.origin, self.origin)
 
-    def factor(self, xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Shading factors in (0, 1] for receivers ``xyz [R, 3]`` inside the grid (its maps
-        interpolated bilinearly between cell centres), and which receivers those are."""
-        g = (xyz[:, :2] - self.origin.astype(np.float32)) / np.float32(self.cell) - 0.5
-        gx, gy = self.shape
-        inside = np.flatnonzero((g[:, 0] >= 0) & (g[:, 0] < gx - 1) & (g[:, 1] >= 0)
-                                & (g[:, 1] < gy - 1))
-        g = g[inside]
-        i, j = g[:, 0].astype(np.int64), g[:, 1].astype(np.int64)
-        fx, fy = g[:, 0] - i, g[:, 1] - j
-        corners = ((i, j, (1 - fx) * (1 - fy)), (i + 1, j, fx * (1 - fy)),
-                   (i, j + 1, (1 - fx) * fy), (i + 1, j + 1, fx * fy))
-
-        def sample(grid):
-            return sum(w * grid[a, b] for a, b, w in corners)
-
-        z = xyz[inside, 2]
-        gap = sample(self.low) - z
-        contact = sample(self.cover) * np.exp(-np.maximum(gap, 0.0) / np.float32(0.25))
-        contact *= gap > -0.05
-        drop = sample(self.drop) * (np.abs(z) < 0.05)
-        f = (1.0 - 0.55 * contact) * (1.0 - 0.28 * drop)
-        return f.astype(np.float32), inside
+    def darken(self, rgb: np.ndarray, bg: BackgroundPicture, top: float) -> None:
+        """Darken ``rgb [H, W, 3]`` (float32, in place: ``bg``'s picture) where ``bg`` shows a
+        world point (from its depth) at most ``top`` high, inside :attr:`box` and the grid: by
+        ``(1 − 0.55 · contact) · (1 − 0.28 · drop)``, the maps interpolated bilinearly between
+        cell centres, the drop shadow on receivers within 5 cm of the floor. Only the pixels
+        the box projects to are visited (:func:`~jaxmotion.render.kernels.shadow_pixels`)."""
+        cam = bg.cam
+        lo, hi = self.box
+        corners = np.array([[(lo[0], hi[0])[k & 1], (lo[1], hi[1])[k >> 1 & 1],
+                             (-0.1, top)[k >> 2]] for k in range(8)])
+        xy, z = cam.project(corners)
+        if np.all(z > 1e-3):
+            x0, y0 = np.maximum(np.floor(xy.min(0)).astype(int), 0)
+            x1, y1 = np.minimum(np.ceil(xy.max(0)).astype(int) + 1, [cam.width, cam.height])
+        else:
+            x0 = y0 = 0
+            x1, y1 = cam.width, cam.height
+        if x1 <= x0 or y1 <= y0:
+            return
+        kernels.shadow_pixels(rgb, bg.depth, cam.eye.astype(np.float32),
+                              cam.rot.astype(np.float32), float(cam.focal), float(cam.cx),
+                              float(cam.cy), np.array([x0, y0, x1, y1], np.int64),
+                              np.asarray(lo, np.float64), np.asarray(hi, np.float64),
+                              np.float32(top), self.origin, float(self.cell), self.low,
+                              self.cover, self.drop)

@@ -88,13 +88,23 @@ def foot_skating(
     )
 
 
-@jax.jit
-def _skating(feet, offsets, pair_ok, fps, height_threshold, velocity_threshold):
-    """``feet [T, F, 3]`` -> dict (formulas: module docstring)."""
-    low = feet[..., 2] - offsets[None] < height_threshold  # [T, F]
+def _sliding(feet, offsets, fps, height_threshold, velocity_threshold):
+    """Of ``feet [T, F, 3]``: ``(height [T, F]`` above the flat-foot height, ``in_contact
+    [T-1, F]``, ``speed [T-1, F]`` horizontal m/s, ``skating [T-1]`` any foot sliding) as the
+    module docstring defines them."""
+    height = feet[..., 2] - offsets[None]
+    low = height < height_threshold  # [T, F]
     in_contact = low[1:] & low[:-1]  # [T-1, F]
     speed = safe_norm(feet[1:, :, :2] - feet[:-1, :, :2]) * fps  # [T-1, F]
     skating = jnp.any(in_contact & (speed > velocity_threshold), axis=1)  # [T-1]
+    return height, in_contact, speed, skating
+
+
+@jax.jit
+def _skating(feet, offsets, pair_ok, fps, height_threshold, velocity_threshold):
+    """``feet [T, F, 3]`` -> dict (formulas: module docstring)."""
+    _, in_contact, speed, skating = _sliding(feet, offsets, fps, height_threshold,
+                                             velocity_threshold)
 
     ratio = masked_mean(skating.astype(jnp.float32), pair_ok)
     counted = in_contact if pair_ok is None else in_contact & pair_ok[:, None]
@@ -120,16 +130,10 @@ def foot_faults(joints, mask=None, *, fps: float = 30.0, height_threshold: float
     Pure JAX (jit / vmap it): ``joints [T, 22, 3]`` (z-up, metres), ``mask [T]`` or None.
     Returns a float32 scalar in [0, 1] (NaN without two consecutive valid frames).
     """
-    joints = jnp.asarray(joints, jnp.float32)
-    feet = joints[:, jnp.asarray(FOOT_JOINTS), :]  # [T, F, 3]
-    height = feet[..., 2] - jnp.asarray(FOOT_FLOOR_OFFSETS, jnp.float32)[None]  # [T, F]
-    low = height < height_threshold
-    speed = safe_norm(feet[1:, :, :2] - feet[:-1, :, :2]) * fps  # [T-1, F]
-    slides = jnp.any(low[1:] & low[:-1] & (speed > velocity_threshold), axis=1)
+    feet = jnp.asarray(joints, jnp.float32)[:, jnp.asarray(FOOT_JOINTS), :]  # [T, F, 3]
+    height, _, _, slides = _sliding(feet, jnp.asarray(FOOT_FLOOR_OFFSETS, jnp.float32), fps,
+                                    height_threshold, velocity_threshold)
     lowest = jnp.min(height[1:], axis=1)
-    fault = slides | (lowest > height_threshold) | (lowest < -sink)
-    pair_ok = None if mask is None else jnp.asarray(mask, bool)[1:] & jnp.asarray(mask, bool)[:-1]
-    if pair_ok is None:
-        return jnp.mean(fault.astype(jnp.float32))
-    n = jnp.sum(pair_ok)
-    return jnp.where(n > 0, jnp.sum(fault & pair_ok) / jnp.maximum(n, 1), jnp.nan)
+    fault = slides | (lowest > height_threshold) | (lowest < -sink)  # [T-1]
+    mask = None if mask is None else jnp.asarray(mask, bool)
+    return masked_mean(fault, None if mask is None else mask[1:] & mask[:-1])

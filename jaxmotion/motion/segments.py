@@ -16,6 +16,8 @@ from jaxmotion.motion.character import FPS, Controls
 from jaxmotion.motion.gait import GaitParams, Locomotion, smoothstep, wrap
 
 __all__ = [
+    "PELVIS_ROLL",
+    "PELVIS_TWIST",
     "Style",
     "foot_pose",
     "from_locomotion",
@@ -26,6 +28,10 @@ __all__ = [
     "stand_up",
     "standing",
 ]
+
+#: How the walker's pelvis turns within its steps (radians): rolled towards the stance foot at
+#: a full sway (2.5 cm), twisted against the stride at a full fore-aft swing.
+PELVIS_ROLL, PELVIS_TWIST = 0.04, 0.08
 
 
 @dataclass(frozen=True)
@@ -120,7 +126,7 @@ def from_locomotion(lo: Locomotion, body, g: GaitParams, style: Style, start: Co
         a, r = foot_pose(lo.foot_xy[:, i], lo.lift[:, i], lo.yaw[:, i], lo.beta[:, i], body, i)
         ankles.append(a)
         rots.append(r)
-    roll = 0.04 * lo.sway / 0.025
+    roll = PELVIS_ROLL * lo.sway / 0.025
     accel = np.gradient(lo.speed) * FPS
     lean = style.lean * lo.speed / 1.5 + 0.04 * np.clip(accel, -1.5, 1.5)
     ahead = np.concatenate([lo.heading[8:], np.repeat(lo.heading[-1:], min(8, n))])[:n]
@@ -135,7 +141,7 @@ def from_locomotion(lo: Locomotion, body, g: GaitParams, style: Style, start: Co
         yaw=yaw,
         pitch=0.02 + 0.3 * lean,
         roll=roll,
-        twist=-0.08 * lo.fore_aft * act,
+        twist=-PELVIS_TWIST * lo.fore_aft * act,
         spine_flex=0.02 + 0.7 * lean,
         spine_bend=-0.7 * roll,
         spine_twist=0.16 * lo.fore_aft * act + (lo.heading - yaw),

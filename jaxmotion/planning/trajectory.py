@@ -43,13 +43,15 @@ def walking_rhythm(xy, fps: float = 30.0, step_len: float = STEP_LENGTH):
     the stance foot once a stride (0.04 rad) and twists against the stride (0.08 rad). The
     phase is the distance walked over ``step_len``; both fade in with the speed (full from
     0.4 m/s) and are zero standing still."""
+    from jaxmotion.motion.segments import PELVIS_ROLL, PELVIS_TWIST
+
     xy = np.asarray(xy, float)
     walked = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
     speed = np.gradient(walked) * fps if len(xy) > 1 else np.zeros(len(xy))
     active = np.clip(speed / 0.4, 0.0, 1.0)
     phase = walked / step_len  # steps taken
-    return (0.04 * np.sin(np.pi * phase) * active,
-            -0.08 * np.cos(np.pi * phase) * active)
+    return (PELVIS_ROLL * np.sin(np.pi * phase) * active,
+            -PELVIS_TWIST * np.cos(np.pi * phase) * active)
 
 
 def trajectory_features(pelvis, heading, roll=None, twist=None) -> np.ndarray:

@@ -34,18 +34,23 @@ import threading
 import numba
 import numpy as np
 
-__all__ = ["compose", "project", "raster_surfels", "raster_triangles", "shadow_pixels", "skin",
-           "to_uint8", "vertex_colours", "warm_up"]
+__all__ = ["BUCKET_SIDES", "EDGE_EPS", "compose", "project", "raster_surfels",
+           "raster_triangles", "shadow_pixels", "skin", "to_uint8", "vertex_colours", "warm_up"]
 
 _JIT = {"cache": True, "nogil": True, "boundscheck": False}
-_EDGE_EPS = np.float32(3e-5)  # as raster._EDGE_EPS: pixel centres this near an edge are in
+#: A pixel centre on an edge shared by two triangles must not fall out of both to float32
+#: rounding: centres within this much of an edge (in barycentric units) count as inside, so
+#: such a pixel gets two fragments and the depth test keeps one (here and in the reference,
+#: :mod:`jaxmotion.render.raster`).
+EDGE_EPS = np.float32(3e-5)
 _NEAR = 1e-3  # triangles with a vertex nearer than this (metres) are dropped
-_SIDES = np.array([1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64], np.int64)  # raster._SIDES
+#: The sides (pixels) of the squares a triangle's candidate pixels are tested in: the smallest
+#: one ≥ its bounding box's longer side, or the power of two above (here and in the reference).
+BUCKET_SIDES = np.array([1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64], np.int64)
 _F0, _F1, _HALF = np.float32(0.0), np.float32(1.0), np.float32(0.5)
 _F255 = np.float32(255.0)
-_NEAR_FLOOR = np.float32(0.05)  # ShadowMap.factor: receivers this near z = 0 take the drop
-# frames._shade_body's weights (float32, as NumPy computes them there): ambient, hemisphere,
-# key, rim, specular
+_NEAR_FLOOR = np.float32(0.05)  # receivers this near z = 0 take the drop shadow
+# the body's lighting weights (float32): ambient, hemisphere, key, rim, specular
 _LIT = np.array([0.30, 0.20, 0.55, 0.10, 0.12], np.float32)
 
 
@@ -95,7 +100,7 @@ def project(verts, eye, rot, focal, cx, cy, shift_x, shift_y, x, y, z):
 def _bucket_side(extent):
     """raster._bucket_sides for one extent: the side of the square the reference tests."""
     e = max(extent, 1)
-    for s in _SIDES:
+    for s in BUCKET_SIDES:
         if s >= e:
             return s
     return 1 << math.ceil(math.log2(e))
@@ -152,8 +157,8 @@ def raster_triangles(x, y, z, faces, vert_offset, id_offset, depth, ids):
             e0y, e1y, e2y = fb0 * fy + fc0, fb1 * fy + fc1, fb2 * fy + fc2
             for dx in range(cols):
                 fx = np.float32(dx)
-                if not (e0y + fa0 * fx >= -_EDGE_EPS and e1y + fa1 * fx >= -_EDGE_EPS
-                        and e2y + fa2 * fx >= -_EDGE_EPS):
+                if not (e0y + fa0 * fx >= -EDGE_EPS and e1y + fa1 * fx >= -EDGE_EPS
+                        and e2y + fa2 * fx >= -EDGE_EPS):
                     continue
                 inv_depth = da * dx + db * dy + dc
                 if not inv_depth > 0:
@@ -170,7 +175,7 @@ def raster_triangles(x, y, z, faces, vert_offset, id_offset, depth, ids):
 def vertex_colours(verts, faces, base, light, view, half, out):
     """Colours ``out [V, 3]`` float32 of the vertices ``verts [V, 3]`` float32 of a mesh:
     unit area-weighted normals (the face normals summed face by face, as
-    ``export._common.vertex_normals``) lit as ``frames._shade_body`` (a hemisphere ambient, a
+    ``export._common.vertex_normals``) lit by the weights ``_LIT`` (a hemisphere ambient, a
     key light ``light``, a rim toward ``view``, a specular at ``half``) on ``base [3]``."""
     nv = verts.shape[0]
     acc = np.zeros((nv, 3), np.float32)
@@ -267,8 +272,9 @@ def shadow_pixels(rgb, depth, eye, rot, focal, cx, cy, box, lo, hi, top, origin,
     point (from ``depth [H, W]`` float32 and the camera: ``eye [3]``, ``rot [3, 3]`` float32,
     ``focal``, ``(cx, cy)``) within the pixel box ``box = (x0, y0, x1, y1)``, inside
     ``lo ≤ (x, y) < hi`` and ``z ≤ top``, and on a ``ShadowMap``'s grid (``origin``,
-    ``cell``, maps ``low``, ``cover``, ``drop`` sampled bilinearly between cell centres): the
-    factor of ``ShadowMap.factor``."""
+    ``cell``, maps ``low``, ``cover``, ``drop`` sampled bilinearly between cell centres): by
+    ``(1 − 0.55 · contact) · (1 − 0.28 · drop)``, the drop only on receivers within
+    ``_NEAR_FLOOR`` of the floor (``ShadowMap.darken``)."""
     gx, gy = low.shape
     o0, o1 = np.float32(origin[0]), np.float32(origin[1])
     fcell = np.float32(cell)

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from jaxmotion.render.kernels import BUCKET_SIDES, EDGE_EPS
+
 __all__ = [
     "EMPTY_KEY",
     "Fragments",
@@ -43,10 +45,6 @@ __all__ = [
 EMPTY_KEY = np.uint64(0xFFFF_FFFF_FFFF_FFFF)  # no fragment: farther than anything
 _ID_MASK = np.uint64(0xFFFF_FFFF)
 _MAX_CANDIDATES = 1 << 21  # candidate pixels tested in one array pass (memory bound)
-# A pixel centre on an edge shared by two triangles must not fall out of both to float32
-# rounding: centres within this much of an edge (in barycentric units) count as inside,
-# so such a pixel gets two fragments and the depth test keeps one.
-_EDGE_EPS = np.float32(3e-5)
 
 
 class Fragments:
@@ -90,14 +88,12 @@ def resolve(buffer: np.ndarray, frags: Fragments) -> np.ndarray:
     return buffer
 
 
-_SIDES = np.array([1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64])
-
-
 def _bucket_sides(extent: np.ndarray) -> np.ndarray:
-    """The smallest of :data:`_SIDES` ≥ each bounding-box side, or the power of two above."""
+    """The smallest of :data:`~jaxmotion.render.kernels.BUCKET_SIDES` ≥ each bounding-box
+    side, or the power of two above."""
     e = np.maximum(extent, 1)
-    out = _SIDES[np.minimum(np.searchsorted(_SIDES, e), len(_SIDES) - 1)]
-    big = e > _SIDES[-1]
+    out = BUCKET_SIDES[np.minimum(np.searchsorted(BUCKET_SIDES, e), len(BUCKET_SIDES) - 1)]
+    big = e > BUCKET_SIDES[-1]
     out[big] = 1 << np.ceil(np.log2(e[big])).astype(np.int64)
     return out
 
@@ -184,7 +180,7 @@ def _triangle_bucket(n, m, planes, depth_plane, x0, y0, ids, width, height) -> F
     for a, b, c in planes:  # E = (b dy + c) [m, n, 1] + (a dx) [m, 1, n]
         e = (b[m, None] * off + c[m, None])[:, :, None] + (a[m, None] * off)[:, None, :]
         inside = e if inside is None else np.minimum(inside, e, out=inside)
-    k, r, c = np.nonzero(inside >= -_EDGE_EPS)
+    k, r, c = np.nonzero(inside >= -EDGE_EPS)
     col, row = x0[m][k] + c, y0[m][k] + r
     keep = (col < width) & (row < height)
     k, r, c, col, row = k[keep], r[keep], c[keep], col[keep], row[keep]

@@ -58,6 +58,12 @@ def test_parse_model_object_centric_options():
             parse_model(f"{base},{bad}")
     with pytest.raises(ValueError, match="keep_trajectory must be"):
         parse_model(base + ",keep_trajectory=yes")
+    m = parse_model(base + ",standing=0,feet=0.5")
+    assert (m.standing, m.feet) == (0.0, 0.5)
+    assert "no standing guidance" in m.sampler_label
+    assert "foot guidance 0.5" in m.sampler_label
+    with pytest.raises(ValueError, match="feet must be a strength"):
+        parse_model(base + ",feet=3")
 
 
 def test_ground_truth_affordance_row(tiny_runs, tmp_path):

@@ -105,6 +105,8 @@ class ModelSpec:
     completion: str | None = None  # (the ADM still finds the generate protocol's regions)
     keep_trajectory: bool = True  # object-centric: the completion holds the stage-1 trajectory
     anchor: float = 1.0  # object-centric: anchor guidance strength on the trajectory (0 = off)
+    standing: float = 1.0  # object-centric: standing-height guidance on the trajectory (0 = off)
+    feet: float = 1.0  # object-centric: foot guidance strength on the completion (0 = off)
 
     @property
     def object_centric(self) -> bool:
@@ -117,9 +119,11 @@ class ModelSpec:
             label = "object-centric, " + label
             if not self.keep_trajectory:
                 label += " (completion writes its own trajectory)"
-            if self.anchor != 1.0:
-                label += (" (no anchor guidance)" if self.anchor == 0
-                          else f" (anchor guidance {self.anchor:g})")
+            for name, strength in (("anchor", self.anchor), ("standing", self.standing),
+                                   ("foot", self.feet)):
+                if strength != 1.0:
+                    label += (f" (no {name} guidance)" if strength == 0
+                              else f" ({name} guidance {strength:g})")
         guided = [f"{stage} w={g:g}" for stage, g in
                   (("ADM", self.adm_guidance), ("AMDM", self.amdm_guidance)) if g != 1.0]
         if self.consistency:
@@ -147,7 +151,7 @@ def _checked(text: str, check, *args):
 def parse_model(text: str) -> ModelSpec:
     """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,consistency=S]
     [,affordance=adm|gt][,adm_candidates=C][,adm_steps=N][,motion_candidates=M]
-    [,trajectory=T,completion=C[,keep_trajectory=1|0][,anchor=S]]`` →
+    [,trajectory=T,completion=C[,keep_trajectory=1|0][,anchor=S][,standing=S][,feet=S]]`` →
     :class:`ModelSpec` (the
     ``--model`` syntax). ``adm_steps``: DDIM steps of the ADM stage when they differ from the
     sampler's (as ``jaxmotion generate --adm-steps``).
@@ -164,7 +168,9 @@ def parse_model(text: str) -> ModelSpec:
     crops and find the generate protocol's regions; ``keep_trajectory=0`` lets the completion
     model write its own trajectory (the authors' way) instead of holding the stage-1 one;
     ``anchor`` is the strength in [0, 1] of the trajectory stage's anchor guidance (default 1;
-    0 = off, :mod:`jaxmotion.diffusion.anchor_guidance`)."""
+    0 = off, :mod:`jaxmotion.diffusion.anchor_guidance`), ``standing`` of its standing-height
+    guidance (the same module) and ``feet`` of the completion stage's foot guidance
+    (:mod:`jaxmotion.diffusion.foot_guidance`), both default 1."""
     name, sep, rest = text.partition("=")
     usage = (f"--model {text!r}: expected NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G]"
              "[,amdm_guidance=G][,consistency=S][,affordance=adm|gt], e.g. "
@@ -199,14 +205,14 @@ def parse_model(text: str) -> ModelSpec:
                                  f"model holds the stage-1 trajectory) or 0, got {value!r}")
             objects[key] = value == "1"
             continue
-        if key == "anchor":
+        if key in ("anchor", "standing", "feet"):
             try:
                 strength = float(value)
             except ValueError:
                 strength = -1.0
             if not 0.0 <= strength <= 1.0:
-                raise ValueError(f"--model {text!r}: anchor must be a strength in [0, 1] "
-                                 f"(0 = no anchor guidance), got {value!r}")
+                raise ValueError(f"--model {text!r}: {key} must be a strength in [0, 1] "
+                                 f"(0 = no {key} guidance), got {value!r}")
             objects[key] = strength
             continue
         if key in ("adm_candidates", "adm_steps", "motion_candidates"):
@@ -236,7 +242,8 @@ def parse_model(text: str) -> ModelSpec:
                              + ", ".join([*guidance, "consistency", "affordance",
                                           "adm_candidates", "adm_steps",
                                           "motion_candidates", "trajectory", "completion",
-                                          "keep_trajectory", "anchor"]))
+                                          "keep_trajectory", "anchor", "standing",
+                                          "feet"]))
         try:
             guidance[key] = float(value)
         except ValueError:
@@ -625,6 +632,7 @@ def evaluate(
                         motion_candidates=spec.motion_candidates,
                         anchor_first=np.array([anchor_is_first(cases[i]["text"]) for i in idx]),
                         keep_trajectory=spec.keep_trajectory, anchor_guidance=spec.anchor,
+                        standing_guidance=spec.standing, foot_guidance=spec.feet,
                         action=np.array([action_index(a) for a in acts]), avoid=avoid))
                 else:
                     res = jax.device_get(pipe.sample(

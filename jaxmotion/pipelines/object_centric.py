@@ -9,10 +9,13 @@ in it, a sentence embedding and a body shape:
 2. the **trajectory model** samples the root trajectory (pelvis position and 6D orientation per
    frame, :mod:`jaxmotion.motion.representation`); for sit, stand up and lie, anchor guidance
    (:mod:`jaxmotion.diffusion.anchor_guidance`) steers its pelvis over the target's support
-   surface at the anchor frame;
+   surface at the anchor frame, and for every action its standing and walking frames to the
+   body's walking height;
 3. the **completion model** samples the whole motion (trajectory + 21 body rotations) given
    that trajectory, one token per frame built from it and from the **trajectory sensor**
-   (a 2 m cube per frame at the root, turned with it, :func:`trajectory_sensors`);
+   (a 2 m cube per frame at the root, turned with it, :func:`trajectory_sensors`); foot
+   guidance (:mod:`jaxmotion.diffusion.foot_guidance`) holds the feet near the floor still
+   and the lowest foot on it;
 4. joints by forward kinematics of the body's shape: bone lengths are exact in every frame.
 
 Both models are :class:`~jaxmotion.models.ObjectCentricDenoiser` trained by
@@ -32,6 +35,7 @@ import jax.numpy as jnp
 
 from jaxmotion.constants import ACTION_CLASSES, SCENE_FPS, UNKNOWN_ACTION
 from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
+from jaxmotion.diffusion.foot_guidance import make_foot_refiner
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.rotations import matrix_to_rotation_6d
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
@@ -151,7 +155,8 @@ class ObjectCentricPipeline:
                    trajectory_spec: SamplerSpec = DEFAULT_SPEC,
                    completion_spec: SamplerSpec = DEFAULT_SPEC,
                    keep_trajectory: bool = True, action=None,
-                   anchor_guidance: float = 1.0, prefix=None, prefix_frames=None) -> dict:
+                   anchor_guidance: float = 1.0, standing_guidance: float = 1.0,
+                   foot_guidance: float = 1.0, prefix=None, prefix_frames=None) -> dict:
         """One motion in one crop (jit / vmap it).
 
         Args:
@@ -170,6 +175,12 @@ class ObjectCentricPipeline:
           anchor_guidance: the strength in [0, 1] of anchor guidance on the trajectory stage
             (:mod:`jaxmotion.diffusion.anchor_guidance`: for sit, stand up and lie the pelvis
             is moved over the target's support surface at the anchor frame; 0 = off).
+          standing_guidance: the strength in [0, 1] of standing-height guidance on the
+            trajectory stage (:func:`jaxmotion.diffusion.anchor_guidance.standing_offset`: the
+            standing and walking frames at this body's walking height; 0 = off).
+          foot_guidance: the strength in [0, 1] of foot guidance on the completion stage
+            (:mod:`jaxmotion.diffusion.foot_guidance`: feet near the floor held still, the
+            lowest foot on the floor; 0 = off).
           prefix, prefix_frames: ``[T, 135]`` motion features (crop frame) and ``[T]`` bool:
             the frames of ``prefix`` that are given (inpainted in both stages: the previous
             step's last frames when motions are joined); None: none.
@@ -186,10 +197,11 @@ class ObjectCentricPipeline:
             return self.trajectory(x, t, c, deterministic=True)
 
         refine = None
-        if anchor_guidance:
+        if anchor_guidance or standing_guidance:
             refine = make_anchor_refiner(points, normals, target_mask, mask,
                                          base["action"][0], t_mean, t_std, anchor_guidance,
-                                         betas=betas, given=prefix_frames)
+                                         betas=betas, given=prefix_frames,
+                                         standing=standing_guidance)
         shape = (1, nt, TRAJECTORY_DIM)
         known = values = None
         if prefix is not None:
@@ -201,18 +213,18 @@ class ObjectCentricPipeline:
                                 {**base, **null}, refine, known_mask=known, known_values=values)
         traj = x[0] * t_std + t_mean
         return self._complete(k_comp, base, null, points, normals, traj, betas, completion_spec,
-                              keep_trajectory, prefix, prefix_frames)
+                              keep_trajectory, prefix, prefix_frames, foot_guidance)
 
     def complete_one(self, key, points, normals, target_mask, text, betas, trajectory, mask, *,
                      spec: SamplerSpec = DEFAULT_SPEC, action=None, prefix=None,
-                     prefix_frames=None) -> dict:
+                     prefix_frames=None, foot_guidance: float = 1.0) -> dict:
         """The completion stage alone along a given root ``trajectory [T, 9]`` (crop frame):
         trajectory control, the pelvis follows it exactly. Arguments as :meth:`sample_one`;
         returns the same dict."""
         base, null = self._conditions(points, normals, target_mask, text, betas, mask, action)
         return self._complete(key, base, null, points, normals, jnp.asarray(trajectory,
                                                                             jnp.float32),
-                              betas, spec, True, prefix, prefix_frames)
+                              betas, spec, True, prefix, prefix_frames, foot_guidance)
 
     def _conditions(self, points, normals, target_mask, text, betas, mask, action):
         """The condition dict of a batch of one, and its text-dropped override."""
@@ -225,7 +237,7 @@ class ObjectCentricPipeline:
         return base, {"drop_text": jnp.ones((1,), bool)}  # guidance on the text
 
     def _complete(self, key, base, null, points, normals, traj, betas, spec, keep_trajectory,
-                  prefix, prefix_frames) -> dict:
+                  prefix, prefix_frames, foot_guidance=0.0) -> dict:
         """Stage 2: the whole motion along ``traj [T, 9]`` (metres, crop frame)."""
         c_mean, c_std = self.comp_stats
         cond = {**base, "trajectory": ((traj - c_mean[:TRAJECTORY_DIM])
@@ -251,8 +263,15 @@ class ObjectCentricPipeline:
             known = given if known is None else known | given
             norm = ((prefix - c_mean) / c_std)[None]
             values = norm if values is None else jnp.where(given, norm, values)
+        refine = None
+        if foot_guidance:
+            feet = make_foot_refiner(betas, base["mask"][0], base["action"][0], c_mean, c_std,
+                                     foot_guidance)
+            # the feet are planted under the root that will be kept: the known values first
+            refine = feet if known is None else (lambda x, t: feet(jnp.where(known, values, x),
+                                                                   t))
         y = spec.run(key, comp_denoise, self.comp_schedule, shape, cond, {**cond, **null},
-                     known_mask=known, known_values=values)
+                     refine, known_mask=known, known_values=values)
         motion = y[0] * c_std + c_mean
         return {"trajectory": traj, "motion": motion, "joints": motion_to_joints(motion, betas)}
 
@@ -260,7 +279,8 @@ class ObjectCentricPipeline:
                trajectory: SamplerSpec = DEFAULT_SPEC, completion: SamplerSpec = DEFAULT_SPEC,
                motion_candidates: int = 1, anchor_first=None,
                keep_trajectory: bool = True, action=None,
-               anchor_guidance: float = 1.0, avoid=None) -> dict:
+               anchor_guidance: float = 1.0, standing_guidance: float = 1.0,
+               foot_guidance: float = 1.0, avoid=None) -> dict:
         """Motions for a batch of crops, the best of ``motion_candidates`` each.
 
         Args:
@@ -270,7 +290,8 @@ class ObjectCentricPipeline:
           (as :func:`~jaxmotion.pipelines.affordance.select_motion`, which picks among the
           candidates: never a teleporting one while another is smooth; of those near enough
           the target at the anchor frame, the one whose feet slide, hover or sink in the
-          fewest frames); keep_trajectory, anchor_guidance: as
+          fewest frames); keep_trajectory, anchor_guidance, standing_guidance,
+          foot_guidance: as
           :meth:`sample_one`; action: ``[B]`` int indices into ``ACTION_CLASSES`` (None:
           unknown); avoid: ``[B, N]`` bool or None, the points a body must keep out of
           (furniture): among the plausible candidates, those touching them in the fewest
@@ -290,7 +311,9 @@ class ObjectCentricPipeline:
         def one(k, p, n, t, e, bt, mk, a):
             out = self.sample_one(k, p, n, t, e, bt, mk, trajectory_spec=trajectory,
                                   completion_spec=completion, keep_trajectory=keep_trajectory,
-                                  action=a, anchor_guidance=anchor_guidance)
+                                  action=a, anchor_guidance=anchor_guidance,
+                                  standing_guidance=standing_guidance,
+                                  foot_guidance=foot_guidance)
             return out["joints"], out["motion"]
 
         per_candidate = jax.vmap(one, in_axes=(0, None, None, None, None, None, None, None))

@@ -1,0 +1,117 @@
+"""Foot guidance: the completion stage plants the feet it puts on the floor.
+
+The completion model writes the body along a root trajectory that the first stage drew
+without the legs. Under the generate protocol its feet came out at the wrong height for
+that root (the lowest foot a whole motion 5–13 cm above or under the floor, within a motion
+a 2–3 cm spread) and slid while they touched the floor, in seated phases most of all.
+This module corrects the predicted clean motion ``x̂0`` at every reverse step of that
+stage, as reconstruction guidance (MDM's foot-contact loss, GMD / OmniControl's spatial
+guidance, :mod:`.anchor_guidance` on the trajectory stage): a few gradient steps on the
+body's joint rotations lower
+
+- **sliding**: the horizontal speed (m/s, in units of 0.5 m/s, the skating threshold) of
+  each foot joint between two frames in which it is near the floor, weighted by how near
+  (a smooth step at 5 cm above its flat-foot height, taken as a constant: the term holds a
+  planted foot still, it does not lift a foot to stop it counting);
+- **floor**: the height of the lowest foot joint above (or under) its flat-foot height,
+  in units of 5 cm, in every frame of every action but lie (a lying body's feet rest on
+  the bed);
+
+the sampler's later steps then continue from the corrected ``x̂0``, so the body the
+model finishes is its own, fitted to the planted feet. The root trajectory is not moved
+(it stays the first stage's, held by inpainting): the legs bend or stretch to reach the
+floor and hold a foot where it stands while the pelvis moves over it.
+
+Pure functions of arrays for one motion; ``vmap`` for batches.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from jaxmotion.constants import ACTION_CLASSES, FOOT_JOINTS, SCENE_FPS
+from jaxmotion.eval.skating import FOOT_FLOOR_OFFSETS
+from jaxmotion.motion.representation import TRAJECTORY_DIM, motion_to_joints
+
+__all__ = ["CONTACT_HEIGHT", "FLOOR_SCALE", "ITERATIONS", "SLIDE_SCALE", "STEP",
+           "foot_loss", "make_foot_refiner"]
+
+#: A foot joint this far (m) above its flat-foot height is half "near the floor".
+CONTACT_HEIGHT = 0.05
+#: Width (m) of the smooth step around :data:`CONTACT_HEIGHT`.
+CONTACT_SOFTNESS = 0.01
+#: Units of the two terms: a foot sliding at 0.5 m/s, the lowest foot 5 cm off the floor.
+SLIDE_SCALE = 0.5
+FLOOR_SCALE = 0.05
+#: Gradient steps per reverse step, and the size of each (normalised feature units).
+ITERATIONS = 3
+STEP = 1.0
+#: The gradient is smoothed over time by a Gaussian of this many frames before each step
+#: (a positive semi-definite kernel: still a descent direction), so that the correction is
+#: as smooth as the motion; a raw per-frame step leaves a frame-to-frame zigzag (jerk).
+SMOOTHING = 2.0
+#: The largest diffusion timestep at which it acts (None: every step).
+UNTIL = None
+
+_LIE = ACTION_CLASSES.index("lie")
+
+
+def foot_loss(features, betas, mask, action, floor_weight: float = 1.0):
+    """Sliding + floor terms (module docstring) of motion ``features [T, 135]`` (metres,
+    crop frame), body ``betas [10]``, valid frames ``mask [T]``, ``action`` index.
+
+    Returns a float32 scalar (mean over valid frame pairs / frames)."""
+    joints = motion_to_joints(features, betas)
+    offsets = jnp.asarray(FOOT_FLOOR_OFFSETS, jnp.float32)
+    feet = joints[:, jnp.asarray(FOOT_JOINTS), :]  # [T, F, 3]
+    height = feet[..., 2] - offsets  # [T, F]
+    near = jax.lax.stop_gradient(jax.nn.sigmoid((CONTACT_HEIGHT - height) / CONTACT_SOFTNESS))
+    mask = jnp.asarray(mask, bool)
+    pair = (mask[1:] & mask[:-1]).astype(jnp.float32)  # [T-1]
+    step = (feet[1:, :, :2] - feet[:-1, :, :2]) * (SCENE_FPS / SLIDE_SCALE)
+    slide = jnp.sum(near[1:] * near[:-1] * jnp.sum(step ** 2, axis=-1), axis=1)  # [T-1]
+    slide = jnp.sum(slide * pair) / jnp.maximum(jnp.sum(pair), 1.0)
+    lowest = -CONTACT_SOFTNESS * jax.nn.logsumexp(-height / CONTACT_SOFTNESS, axis=1)
+    valid = mask.astype(jnp.float32) * (jnp.asarray(action) != _LIE)
+    floor = jnp.sum(valid * (lowest / FLOOR_SCALE) ** 2) / jnp.maximum(jnp.sum(mask), 1.0)
+    return slide + floor_weight * floor
+
+
+def make_foot_refiner(betas, mask, action, mean, std, strength: float = 1.0, *,
+                      iterations: int | None = None, step: float | None = None):
+    """A ``refine_fn(x0_hat [1, T, D], t) -> x0_hat`` for the completion sampler.
+
+    ``mean``, ``std``: the completion model's feature statistics (``x0_hat`` is
+    normalised); ``strength`` in [0, 1] scales the step (0 = off); ``iterations``,
+    ``step``: default :data:`ITERATIONS`, :data:`STEP`. Only the body's rotations move
+    (features after :data:`TRAJECTORY_DIM`)."""
+    iterations = ITERATIONS if iterations is None else int(iterations)
+    step = STEP if step is None else float(step)
+    betas = None if betas is None else jnp.asarray(betas, jnp.float32)
+    scale = jnp.float32(step * strength)
+    body = (jnp.arange(mean.shape[-1]) >= TRAJECTORY_DIM).astype(jnp.float32)
+
+    def loss(x):
+        return foot_loss(x * std + mean, betas, mask, action)
+
+    grad = jax.grad(loss)
+    radius = int(3 * SMOOTHING + 0.5)
+    kernel = jnp.exp(-0.5 * (jnp.arange(-radius, radius + 1) / SMOOTHING) ** 2)
+    kernel = kernel / jnp.sum(kernel)
+
+    def smooth(g):  # [T, D] along T, zero-padded
+        return jax.vmap(lambda c: jnp.convolve(c, kernel, mode="same"), in_axes=1,
+                        out_axes=1)(g)
+
+    until = UNTIL
+
+    def refine(x0, t):
+        gate = 1.0 if until is None else (t[0] <= until).astype(jnp.float32)
+
+        def one(_, x):
+            return x - gate * scale * body * smooth(grad(x))
+
+        return jax.lax.fori_loop(0, iterations, one, x0[0])[None]
+
+    return refine

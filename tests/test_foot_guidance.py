@@ -141,26 +141,28 @@ def test_skating_of_the_planted_motion_is_lower():
     assert float(foot_skating(after)["skate_ratio"]) <= float(foot_skating(before)["skate_ratio"])
 
 
-def _brute_standing(height, stand, mask):
-    low, high = stand - A.STANDING_BAND[0], stand - A.STANDING_BAND[1]
+def _brute_standing(height, stand, mask, seat):
     w = np.zeros(len(height))
     for t, z in enumerate(height):
-        u = min(max((z - low) / (high - low), 0.0), 1.0)
+        way = (z - seat) / max(stand - seat, 0.1)
+        u = min(max((way - A.STANDING_BAND[0]) / (A.STANDING_BAND[1] - A.STANDING_BAND[0]),
+                    0.0), 1.0)
         w[t] = u * u * (3 - 2 * u) * mask[t]
     keep = [stand - A.WALKING_DROP - z for z, wt in zip(height, w) if wt > 0.5]
     return w, (float(np.median(keep)) if len(keep) >= 2 else 0.0)
 
 
-def test_standing_offset_matches_numpy_and_leaves_seated_frames():
+@pytest.mark.parametrize("seat", [0.6, 0.74])  # a chair, a bar stool
+def test_standing_offset_matches_numpy_and_leaves_seated_frames(seat):
     rng = np.random.default_rng(1)
     stand = 0.93
-    # walk in 6 cm too high, sit down to a seated pelvis at 0.6 m
+    # walk in 6 cm too high, sit down to the seated pelvis
     height = np.r_[np.full(30, stand + 0.06) + rng.normal(0, 0.01, 30),
-                   np.linspace(stand + 0.06, 0.6, 15), np.full(15, 0.6)].astype(np.float32)
+                   np.linspace(stand + 0.06, seat, 15), np.full(15, seat)].astype(np.float32)
     mask = np.ones(60, bool)
     mask[-3:] = False
-    w, off = A.standing_offset(jnp.asarray(height), stand, jnp.asarray(mask))
-    bw, boff = _brute_standing(height, stand, mask)
+    w, off = A.standing_offset(jnp.asarray(height), stand, jnp.asarray(mask), seat)
+    bw, boff = _brute_standing(height, stand, mask, seat)
     np.testing.assert_allclose(np.asarray(w), bw, atol=1e-6)
     np.testing.assert_allclose(float(off), boff, atol=1e-5)
     moved = height + np.asarray(w) * float(off)
@@ -168,8 +170,13 @@ def test_standing_offset_matches_numpy_and_leaves_seated_frames():
     np.testing.assert_array_equal(moved[45:], height[45:])  # seated frames stay
     assert np.abs(np.diff(moved)).max() < 0.05  # no step in height
     # a motion with no standing frame (lying, seated throughout) is not moved
-    w, off = A.standing_offset(jnp.full(20, 0.55), stand, jnp.ones(20, bool))
+    w, off = A.standing_offset(jnp.full(20, seat), stand, jnp.ones(20, bool), seat)
     assert float(off) == 0.0
+    # without a seat, a walk counts from SEATED_DROP under standing
+    w, _ = A.standing_offset(jnp.asarray(height), stand, jnp.asarray(mask))
+    np.testing.assert_allclose(np.asarray(w), _brute_standing(height, stand, mask,
+                                                              stand - A.SEATED_DROP)[0],
+                               atol=1e-6)
 
 
 def test_anchor_refiner_puts_a_walk_at_the_bodys_walking_height():

@@ -68,23 +68,24 @@ __all__ = [
     "LAYER_HALF_THICKNESS",
     "LYING_PELVIS",
     "ON_SURFACE",
+    "SEATED_DROP",
     "SEATED_PELVIS",
     "STANDING_BAND",
     "STANDING_LEGS",
     "SURFACE_BAND",
     "SURFACE_RADIUS",
     "UP_NORMAL",
+    "WALKING_DROP",
     "WALK_INSIDE",
     "WALK_NEAR",
     "WALK_STOP",
-    "WALKING_DROP",
     "anchor_frame",
     "anchor_offset",
     "guided_actions",
     "lying_rotation_6d",
     "make_anchor_refiner",
-    "standing_offset",
     "standing_height",
+    "standing_offset",
     "support_surface",
     "surface_height",
     "walk_offset",
@@ -114,11 +115,12 @@ STANDING_LEGS, ANKLE_HEIGHT = 1.116, 0.07
 HOLD, TAPER = 10, 15
 # A standing or walking frame's pelvis, in the dataset, is this far (m) under the standing
 # height (median 1.5 cm, 0.4 cm spread over 64 validation motions of all four actions). A
-# frame counts as standing (weight 1) when its pelvis is less than STANDING_BAND[1] under
-# the standing height, not at all (0) when more than STANDING_BAND[0], smoothly between (a
-# seated pelvis is 0.3-0.5 m lower).
+# frame counts as standing (weight 1) when its pelvis has come STANDING_BAND[1] of the way
+# from its seat (or bed) up to the standing height, not at all (0) below STANDING_BAND[0] of
+# the way, smoothly between; a walk, with no seat, counts from SEATED_DROP under standing.
 WALKING_DROP = 0.015
-STANDING_BAND = (0.30, 0.15)
+STANDING_BAND = (0.5, 0.8)
+SEATED_DROP = 0.45
 SURFACE_RADIUS = 0.1  # m (xy): where the surface under the pelvis is looked for
 INSETS = (0.15, 0.10, 0.05)  # m past the nearest surface point along the approach, tried in turn
 # A walk that stops farther than WALK_NEAR (xy, m) from every point of its target is moved,
@@ -143,20 +145,23 @@ def standing_height(betas=None) -> jnp.ndarray:
     return ANKLE_HEIGHT + STANDING_LEGS * leg
 
 
-def standing_offset(height, stand, mask) -> tuple[jnp.ndarray, jnp.ndarray]:
+def standing_offset(height, stand, mask, seat=None) -> tuple[jnp.ndarray, jnp.ndarray]:
     """How far to raise the standing frames of a pelvis path: ``(weight [T], offset)``.
 
     ``height [T]``: the pelvis heights (m); ``stand``: the body's standing height
-    (:func:`standing_height`); ``mask [T]`` valid frames. ``weight`` is 1 for a frame whose
-    pelvis is within ``STANDING_BAND[1]`` of ``stand``, 0 below ``STANDING_BAND[0]``,
-    smooth between; ``offset`` is the median of ``stand − WALKING_DROP − height`` over the
-    frames of weight above 1/2 (0 with fewer than two; the median, so that the frames of
-    sitting down or getting up do not pull it): adding ``weight · offset`` puts the
-    standing part of the path at this body's walking height and leaves its seated or lying
-    part alone.
+    (:func:`standing_height`); ``mask [T]`` valid frames; ``seat``: the pelvis height of this
+    motion seated or lying (surface + :data:`SEATED_PELVIS` or :data:`LYING_PELVIS`; None:
+    ``stand − SEATED_DROP``). A frame's ``weight`` is 0 while its pelvis is less than
+    ``STANDING_BAND[0]`` of the way from ``seat`` up to ``stand``, 1 from ``STANDING_BAND[1]``
+    of the way, smooth between; ``offset`` is the median of ``stand − WALKING_DROP −
+    height`` over the frames of weight above 1/2 (0 with fewer than two; the median, so that
+    the frames of sitting down or getting up do not pull it): adding ``weight · offset``
+    puts the standing part of the path at this body's walking height and leaves its seated
+    or lying part alone, on a low sofa or a bar stool alike.
     """
-    low, high = stand - STANDING_BAND[0], stand - STANDING_BAND[1]
-    u = jnp.clip((height - low) / (high - low), 0.0, 1.0)
+    seat = stand - SEATED_DROP if seat is None else seat
+    way = (height - seat) / jnp.maximum(stand - seat, 0.1)
+    u = jnp.clip((way - STANDING_BAND[0]) / (STANDING_BAND[1] - STANDING_BAND[0]), 0.0, 1.0)
     weight = u * u * (3.0 - 2.0 * u) * jnp.asarray(mask, jnp.float32)
     standing = weight > 0.5
     offset = jnp.nanmedian(jnp.where(standing, stand - WALKING_DROP - height, jnp.nan))
@@ -312,7 +317,8 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
     mask = jnp.asarray(mask, bool)
     frame = anchor_frame(mask, action)
     action = jnp.asarray(action)
-    on = guided_actions(action).astype(jnp.float32) * float(strength)
+    guided = guided_actions(action)
+    on = guided.astype(jnp.float32) * float(strength)
     walk = (action == _WALK).astype(jnp.float32) * float(strength)
     lying = (action == _LIE).astype(jnp.float32) * float(strength)
     middle = jnp.sum(points[:, :2] * surface[:, None], 0) / jnp.maximum(jnp.sum(surface), 1)
@@ -337,11 +343,6 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
         now = acts(until)  # the height and the turn act now
         now_xy = now if shift_until is None else now * acts(shift_until)  # the path moves now
         gate, gate_xy, walk_xy = on * now, on * now_xy, walk * now_xy
-        if standing:  # the standing part of the path at this body's walking height
-            z = x0_hat[..., 2] * std[2] + mean[2]  # [B, T]
-            w, up = jax.vmap(standing_offset, in_axes=(0, None, None))(z, stand, mask)
-            raise_ = float(standing) * now * up[:, None] * w * shift[None]
-            x0_hat = x0_hat.at[..., 2].add(raise_ / std[2])
         pelvis = x0_hat[:, frame, :3] * std[:3] + mean[:3]  # [B, 3] metres
         offset = jax.vmap(anchor_offset, in_axes=(0, None, None))(pelvis[:, :2], points[:, :2],
                                                                    surface)
@@ -353,6 +354,13 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
                                                                 target, first)
         offset = gate_xy * offset + walk_xy * stop
         height = jax.vmap(surface_height, in_axes=(0, None, None))(xy, points, surface)
+        if standing:  # the standing part of the path at this body's walking height
+            z = x0_hat[..., 2] * std[2] + mean[2]  # [B, T]
+            seat = jnp.where(guided & ~jnp.isnan(height), height + rest, stand - SEATED_DROP)
+            w, up = jax.vmap(standing_offset, in_axes=(0, None, None, 0))(z, stand, mask, seat)
+            raise_ = float(standing) * now * up[:, None] * w * shift[None]  # [B, T]
+            x0_hat = x0_hat.at[..., 2].add(raise_ / std[2])
+            pelvis = pelvis.at[:, 2].add(raise_[:, frame])
         lift = jnp.where(jnp.isnan(height), 0.0, height + rest - pelvis[:, 2])  # [B]
         lift = gate[:, 0] * lift + walk * now[:, 0] * (stand - pelvis[:, 2])
         # lie: the orientation turns to lying along the surface over the same frames

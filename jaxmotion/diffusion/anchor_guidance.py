@@ -145,6 +145,12 @@ def standing_height(betas=None) -> jnp.ndarray:
     return ANKLE_HEIGHT + STANDING_LEGS * leg
 
 
+def _ease(u):
+    """The cubic smoothstep ``3u² − 2u³`` of ``u`` clipped to [0, 1]."""
+    u = jnp.clip(u, 0.0, 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
 def standing_offset(height, stand, mask, seat=None) -> tuple[jnp.ndarray, jnp.ndarray]:
     """How far to raise the standing frames of a pelvis path: ``(weight [T], offset)``.
 
@@ -160,9 +166,9 @@ def standing_offset(height, stand, mask, seat=None) -> tuple[jnp.ndarray, jnp.nd
     or lying part alone, on a low sofa or a bar stool alike.
     """
     seat = stand - SEATED_DROP if seat is None else seat
-    way = (height - seat) / jnp.maximum(stand - seat, 0.1)
-    u = jnp.clip((way - STANDING_BAND[0]) / (STANDING_BAND[1] - STANDING_BAND[0]), 0.0, 1.0)
-    weight = u * u * (3.0 - 2.0 * u) * jnp.asarray(mask, jnp.float32)
+    way = (height - seat) / jnp.maximum(stand - seat, 0.1)  # 0.1 m: a seat found too high
+    u = (way - STANDING_BAND[0]) / (STANDING_BAND[1] - STANDING_BAND[0])
+    weight = _ease(u) * jnp.asarray(mask, jnp.float32)
     standing = weight > 0.5
     offset = jnp.nanmedian(jnp.where(standing, stand - WALKING_DROP - height, jnp.nan))
     return weight, jnp.where(jnp.sum(standing) >= 2, offset, 0.0)
@@ -333,8 +339,8 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
     if given is not None:
         n_given = jnp.sum(jnp.asarray(given, jnp.int32))
         span = jnp.maximum(frame - n_given + 1, 1).astype(jnp.float32)
-        ramp = jnp.clip((jnp.arange(mask.shape[0]) - n_given + 1) / span, 0.0, 1.0)
-        shift = jnp.where(frame >= n_given, ramp * ramp * (3.0 - 2.0 * ramp), 0.0)
+        ramp = (jnp.arange(mask.shape[0]) - n_given + 1) / span
+        shift = jnp.where(frame >= n_given, _ease(ramp), 0.0)
     mean, std = jnp.asarray(mean), jnp.asarray(std)
 
     def refine(x0_hat, t):

@@ -51,8 +51,6 @@ STEP = 1.0
 #: (a positive semi-definite kernel: still a descent direction), so that the correction is
 #: as smooth as the motion; a raw per-frame step leaves a frame-to-frame zigzag (jerk).
 SMOOTHING = 2.0
-#: The largest diffusion timestep at which it acts (None: every step).
-UNTIL = None
 
 _LIE = ACTION_CLASSES.index("lie")
 
@@ -79,15 +77,13 @@ def foot_loss(features, betas, mask, action, floor_weight: float = 1.0):
 
 
 def make_foot_refiner(betas, mask, action, mean, std, strength: float = 1.0, *,
-                      iterations: int | None = None, step: float | None = None):
+                      iterations: int = ITERATIONS, step: float = STEP):
     """A ``refine_fn(x0_hat [1, T, D], t) -> x0_hat`` for the completion sampler.
 
     ``mean``, ``std``: the completion model's feature statistics (``x0_hat`` is
-    normalised); ``strength`` in [0, 1] scales the step (0 = off); ``iterations``,
-    ``step``: default :data:`ITERATIONS`, :data:`STEP`. Only the body's rotations move
+    normalised); ``strength`` in [0, 1] scales the step (0 = off); ``iterations``
+    gradient steps of size ``step`` at every reverse step. Only the body's rotations move
     (features after :data:`TRAJECTORY_DIM`)."""
-    iterations = ITERATIONS if iterations is None else int(iterations)
-    step = STEP if step is None else float(step)
     betas = None if betas is None else jnp.asarray(betas, jnp.float32)
     scale = jnp.float32(step * strength)
     body = (jnp.arange(mean.shape[-1]) >= TRAJECTORY_DIM).astype(jnp.float32)
@@ -104,14 +100,10 @@ def make_foot_refiner(betas, mask, action, mean, std, strength: float = 1.0, *,
         return jax.vmap(lambda c: jnp.convolve(c, kernel, mode="same"), in_axes=1,
                         out_axes=1)(g)
 
-    until = UNTIL
-
     def refine(x0, t):
-        gate = 1.0 if until is None else (t[0] <= until).astype(jnp.float32)
-
         def one(_, x):
-            return x - gate * scale * body * smooth(grad(x))
+            return x - scale * body * smooth(grad(x))
 
-        return jax.lax.fori_loop(0, iterations, one, x0[0])[None]
+        return jax.lax.fori_loop(0, int(iterations), one, x0[0])[None]
 
     return refine

@@ -73,6 +73,10 @@ def test_features_give_back_the_dataset_joints_and_smplx(data):
         assert feats.shape == (len(m), MOTION_DIM) and TRAJECTORY_DIM == 9
         joints = np.asarray(motion_to_joints(feats, s["betas"]))
         np.testing.assert_allclose(joints[m], s["joints"][m], atol=2e-5)
+        # a few joints alone (their kinematic chain only): the same positions
+        some = (11, 7, 20)
+        np.testing.assert_allclose(np.asarray(motion_to_joints(feats, s["betas"], some)),
+                                   joints[:, list(some)], atol=1e-6)
         smplx = motion_to_smplx(feats, s["betas"])
         np.testing.assert_allclose(np.asarray(smplx["transl"])[m], s["transl"][m], atol=2e-5)
         back = axis_angle_to_matrix(smplx["body_pose"])

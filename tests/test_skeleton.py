@@ -128,3 +128,32 @@ def test_bad_shapes_are_explained():
         S.forward_kinematics(jnp.zeros((21, 3, 3)), jnp.zeros(3))
     with pytest.raises(ValueError, match="betas has 12"):
         S.rest_joints(jnp.zeros(12))
+
+
+def test_kinematic_chain_places_the_same_joints_as_the_whole_body():
+    feet = (7, 8, 10, 11)
+    chain = S.kinematic_chain(feet)
+    assert chain == (0, 1, 2, 4, 5, 7, 8, 10, 11)  # pelvis, hips, knees, ankles, feet
+    assert S.kinematic_chain(range(22)) == tuple(range(22))
+    assert S.kinematic_chain([15]) == (0, 3, 6, 9, 12, 15)  # the head hangs from the spine
+    rng = np.random.default_rng(0)
+    rot = Rotation.random(5 * 22, random_state=1).as_matrix().reshape(5, 22, 3, 3)
+    transl, rest = rng.normal(size=(5, 3)), np.asarray(S.rest_joints(rng.normal(size=10)))
+    whole, whole_rot = S.forward_kinematics_with_rotations(
+        jnp.asarray(rot, jnp.float32), jnp.asarray(transl, jnp.float32), rest)
+    part, part_rot = S.forward_kinematics_with_rotations(
+        jnp.asarray(rot[:, chain], jnp.float32), jnp.asarray(transl, jnp.float32), rest, chain)
+    np.testing.assert_array_equal(part, np.asarray(whole)[:, chain])
+    np.testing.assert_array_equal(part_rot, np.asarray(whole_rot)[:, chain])
+    for j in chain:  # against the homogeneous-transform reference too
+        np.testing.assert_allclose(part[0, chain.index(j)], fk_numpy(rot[0], transl[0], rest)[j],
+                                   atol=2e-5)
+
+
+def test_a_bad_chain_is_explained():
+    with pytest.raises(ValueError, match="not a kinematic chain"):
+        S.forward_kinematics_with_rotations(jnp.zeros((2, 3, 3)), jnp.zeros(3), None, (0, 7))
+    with pytest.raises(ValueError, match=r"\[\.\.\., 3, 3, 3\]"):
+        S.forward_kinematics_with_rotations(jnp.zeros((2, 3, 3)), jnp.zeros(3), None, (0, 1, 4))
+    with pytest.raises(ValueError, match="joint index 22"):
+        S.kinematic_chain([22])

@@ -54,6 +54,7 @@ from jaxmotion.geometry.skeleton import (
     bone_lengths,
     forward_kinematics,
     forward_kinematics_with_rotations,
+    kinematic_chain,
     neutral_skeleton,
     rest_joints,
     rest_joints_host,

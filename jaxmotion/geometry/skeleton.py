@@ -43,6 +43,7 @@ __all__ = [
     "bone_lengths",
     "forward_kinematics",
     "forward_kinematics_with_rotations",
+    "kinematic_chain",
     "neutral_skeleton",
     "rest_joints",
     "rest_joints_host",
@@ -172,30 +173,57 @@ def rest_joints_host(betas=None, skeleton: Skeleton | None = None) -> np.ndarray
     return rest + np.asarray(sk.shape_dirs, np.float64)[..., : len(betas)] @ betas
 
 
+def kinematic_chain(joints) -> tuple[int, ...]:
+    """``joints`` and every joint they hang from, in skeleton order (a parent before its
+    children, the pelvis first): what :func:`forward_kinematics_with_rotations` needs to place
+    ``joints`` alone (the feet: pelvis, hips, knees, ankles, feet)."""
+    needed = {0}
+    for j in joints:
+        j = int(j)
+        if not 0 <= j < NUM_JOINTS:
+            raise ValueError(f"joint index {j} is not one of the {NUM_JOINTS} joints")
+        while j not in needed:
+            needed.add(j)
+            j = PARENTS[j]
+    return tuple(sorted(needed))
+
+
 def forward_kinematics_with_rotations(
-    local_rot: jnp.ndarray, transl: jnp.ndarray, rest: jnp.ndarray | None = None
+    local_rot: jnp.ndarray, transl: jnp.ndarray, rest: jnp.ndarray | None = None,
+    chain=None,
 ) -> tuple[jnp.ndarray, jnp.ndarray]:
     """Forward kinematics returning joints and global rotations.
 
     Args:
       local_rot: ``[..., 22, 3, 3]`` rotation of each joint relative to its parent
-        (joint 0: the global orientation).
+        (joint 0: the global orientation); with ``chain``, ``[..., len(chain), 3, 3]``, the
+        rotations of those joints in that order.
       transl: ``[..., 3]`` root translation (SMPL-X ``transl``), metres.
       rest: ``[..., 22, 3]`` rest joints (default: neutral), broadcast with the batch.
+      chain: None (every joint), or a :func:`kinematic_chain`: only those joints are placed
+        (the same numbers as for the whole body, for a fraction of the work: the feet's
+        chain is 9 of the 22 joints).
     Returns:
-      joints ``[..., 22, 3]`` and global rotations ``[..., 22, 3, 3]``.
+      joints ``[..., 22, 3]`` and global rotations ``[..., 22, 3, 3]`` (with ``chain``:
+      ``[..., len(chain), ...]``, in its order).
     """
-    if local_rot.shape[-3:] != (NUM_JOINTS, 3, 3):
-        raise ValueError(f"local_rot must be [..., 22, 3, 3], got {local_rot.shape}")
+    chain = tuple(range(NUM_JOINTS)) if chain is None else tuple(int(j) for j in chain)
+    if chain != kinematic_chain(chain):
+        raise ValueError(f"chain {chain} is not a kinematic chain (the pelvis first, each "
+                         "joint after its parent): build it with kinematic_chain(joints)")
+    if local_rot.shape[-3:] != (len(chain), 3, 3):
+        raise ValueError(f"local_rot must be [..., {len(chain)}, 3, 3] for {len(chain)} "
+                         f"joints, got {local_rot.shape}")
     rest = rest_joints() if rest is None else jnp.asarray(rest)
-    offsets = [rest[..., 0, :]] + [rest[..., j, :] - rest[..., PARENTS[j], :] for j in range(1, 22)]
+    slot = {j: i for i, j in enumerate(chain)}
     rots = [local_rot[..., 0, :, :]]
     pos = [rest[..., 0, :] + transl]
-    # Unrolled over the (static) tree: 22 small matmuls fuse well under jit.
-    for j in range(1, NUM_JOINTS):
-        p = PARENTS[j]
-        pos.append(pos[p] + jnp.einsum("...ij,...j->...i", rots[p], offsets[j]))
-        rots.append(rots[p] @ local_rot[..., j, :, :])
+    # Unrolled over the (static) tree: small matmuls fuse well under jit.
+    for i, j in enumerate(chain[1:], start=1):
+        p = slot[PARENTS[j]]
+        offset = rest[..., j, :] - rest[..., PARENTS[j], :]
+        pos.append(pos[p] + jnp.einsum("...ij,...j->...i", rots[p], offset))
+        rots.append(rots[p] @ local_rot[..., i, :, :])
     return jnp.stack(pos, axis=-2), jnp.stack(rots, axis=-3)
 
 

@@ -18,6 +18,7 @@ those of the body's shape in every frame, whatever the network writes.
 from __future__ import annotations
 
 import jax.numpy as jnp
+import numpy as np
 
 from jaxmotion.geometry.rotations import (
     axis_angle_to_matrix,
@@ -25,7 +26,12 @@ from jaxmotion.geometry.rotations import (
     matrix_to_rotation_6d,
     rotation_6d_to_matrix,
 )
-from jaxmotion.geometry.skeleton import forward_kinematics, rest_joints
+from jaxmotion.geometry.skeleton import (
+    forward_kinematics,
+    forward_kinematics_with_rotations,
+    kinematic_chain,
+    rest_joints,
+)
 
 __all__ = [
     "MOTION_DIM",
@@ -84,18 +90,31 @@ def motion_to_smplx(features, betas=None) -> dict:
             "transl": pelvis - rest[..., None, 0, :]}
 
 
-def motion_to_joints(features, betas=None):
+def motion_to_joints(features, betas=None, joints=None):
     """Joints ``[..., T, 22, 3]`` of motion features ``[..., T, 135]`` by forward kinematics
-    of a body of shape ``betas [..., B]`` (default: the neutral body)."""
+    of a body of shape ``betas [..., B]`` (default: the neutral body).
+
+    ``joints``: None, or joint indices: then only those are placed, ``[..., T, len(joints),
+    3]``, and only the rotations of their :func:`~jaxmotion.geometry.kinematic_chain` are
+    read (the feet: 8 of the 21 body rotations; under a gradient, as foot guidance takes
+    one, about a third of the whole body's work)."""
     features = jnp.asarray(features, jnp.float32)
     if features.shape[-1] != MOTION_DIM:
         raise ValueError(f"motion features must be [..., T, {MOTION_DIM}], got {features.shape}")
     pelvis, g = trajectory_frames(features)
-    body = rotation_6d_to_matrix(features[..., TRAJECTORY_DIM:].reshape(
-        *features.shape[:-1], 21, 6))
-    local = jnp.concatenate([g[..., None, :, :], body], axis=-3)
     rest = rest_joints(betas)[..., None, :, :]  # [..., 1, 22, 3]: the same body every frame
-    return forward_kinematics(local, pelvis - rest[..., 0, :], rest)
+    if joints is None:
+        body = rotation_6d_to_matrix(features[..., TRAJECTORY_DIM:].reshape(
+            *features.shape[:-1], 21, 6))
+        local = jnp.concatenate([g[..., None, :, :], body], axis=-3)
+        return forward_kinematics(local, pelvis - rest[..., 0, :], rest)
+    chain = kinematic_chain(joints)
+    columns = np.asarray([TRAJECTORY_DIM + 6 * (j - 1) + c for j in chain[1:] for c in range(6)])
+    body = rotation_6d_to_matrix(features[..., columns].reshape(
+        *features.shape[:-1], len(chain) - 1, 6))
+    local = jnp.concatenate([g[..., None, :, :], body], axis=-3)
+    placed, _ = forward_kinematics_with_rotations(local, pelvis - rest[..., 0, :], rest, chain)
+    return placed[..., np.asarray([chain.index(int(j)) for j in joints]), :]
 
 
 def trajectory_velocity(features, mask=None, fps: float = 30.0):

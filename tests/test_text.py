@@ -203,6 +203,40 @@ def test_cache_hits_and_misses(tmp_path):
     assert c4.misses == 0
 
 
+def test_a_growing_cache_stays_a_few_files(tmp_path, monkeypatch):
+    """One sentence per write (as generate writes): past MAX_SHARDS shards the write merges
+    them, and nothing is lost; the token cache likewise."""
+    monkeypatch.setattr(cache_mod, "MAX_SHARDS", 4)
+    enc = FakeEncoder()
+    cache = EmbeddingCache(tmp_path)
+    words = [f"sentence {i}" for i in range(11)]
+    for w in words:
+        cache.encode(enc, [w])
+        assert len(list(tmp_path.glob("*.npz"))) <= 4
+    fresh = EmbeddingCache(tmp_path)
+    assert len(fresh) == 11
+    np.testing.assert_array_equal(fresh.encode(enc, words), enc(words))
+    assert fresh.misses == 0
+
+    tokens = jtext.TokenCache(tmp_path / "tok")
+    for i in range(6):
+        tokens.put([f"k{i}"], [np.full((i + 1, 3), i, np.float32)])
+    assert len(list((tmp_path / "tok").glob("*.npz"))) <= 4
+    back = jtext.TokenCache(tmp_path / "tok")
+    for i in range(6):
+        np.testing.assert_array_equal(back.get([f"k{i}"])[f"k{i}"],
+                                      np.full((i + 1, 3), i, np.float16))
+
+
+def test_shared_cache_is_opened_once_and_sees_other_writers(tmp_path):
+    enc = FakeEncoder()
+    a = EmbeddingCache.shared(tmp_path)
+    assert EmbeddingCache.shared(tmp_path) is a
+    EmbeddingCache(tmp_path).encode(enc, ["written by another process"])
+    b = EmbeddingCache.shared(tmp_path)
+    assert b is a and len(b) == 1
+
+
 def test_cache_write_is_atomic(tmp_path, monkeypatch):
     enc = FakeEncoder()
 

@@ -78,7 +78,7 @@ class TextSimilarity:
         st = (minilm_dir() / "model.safetensors").stat()
         version = f"size={st.st_size},mtime={st.st_mtime_ns}"
         keys = [cache_key(f"{TEXT_ENCODER}:grounding", version, t) for t in texts]
-        cache = EmbeddingCache(self.cache_dir)
+        cache = EmbeddingCache.shared(self.cache_dir)
         found = cache.get(keys)
         todo = [(k, t) for k, t in zip(keys, texts) if k not in found]
         if todo:

@@ -10,7 +10,11 @@ no shard or a complete one, and concurrent writers never clobber each other
 (two writers of the same texts write identical, redundant shards).
 
 All shards are read into memory when the cache is opened (45k texts × 384
-floats ≈ 70 MB). :meth:`EmbeddingCache.compact` merges them into one shard.
+floats ≈ 70 MB). :meth:`EmbeddingCache.compact` merges them into one shard, and a cache
+that has grown past :data:`MAX_SHARDS` shards is merged by the write that passes it: a user's
+cache, which gains a shard for every new sentence, stays a few files to read (one file
+per sentence, opened by every new process, had made ``generate`` slower with every
+sentence typed). :meth:`EmbeddingCache.shared` keeps one opened cache per folder in a process.
 """
 
 from __future__ import annotations
@@ -24,8 +28,11 @@ import numpy as np
 
 from jaxmotion._atomic import atomic_open
 
-__all__ = ["EmbeddingCache", "TokenCache", "cache_key", "dataset_cache_dir", "encode_cached",
-           "pad_tokens"]
+__all__ = ["MAX_SHARDS", "EmbeddingCache", "TokenCache", "cache_key", "dataset_cache_dir",
+           "encode_cached", "pad_tokens"]
+
+#: A cache of more shards than this is merged into one by the write that passes it.
+MAX_SHARDS = 32
 
 
 def cache_key(model_name: str, checksum: str, text: str) -> str:
@@ -53,6 +60,18 @@ class _ShardCache:
         self._loaded: set[str] = set()
         self.refresh()
 
+    @classmethod
+    def shared(cls, path):
+        """This process's opened cache of the folder ``path`` (opened on the first call; later
+        calls read only the shards written since, by other processes)."""
+        key = (cls, str(Path(path).expanduser().resolve()))
+        cache = _OPEN.get(key)
+        if cache is None:
+            cache = _OPEN[key] = cls(path)
+        else:
+            cache.refresh()
+        return cache
+
     def _owns(self, name: str) -> bool:
         return name.startswith(self._PREFIX)
 
@@ -70,6 +89,8 @@ class _ShardCache:
             try:
                 with np.load(shard, allow_pickle=False) as z:
                     entries = list(self._entries(z))
+            except FileNotFoundError:  # merged away by another process's compact meanwhile
+                continue
             except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as e:
                 # not ours, or damaged by something else: skip, never crash training
                 warnings.warn(f"skipping unreadable {self._KIND} shard {shard}: {e}",
@@ -101,7 +122,27 @@ class _ShardCache:
             np.savez(f, keys=np.array(keys, dtype="<U64"), **arrays)
         self._mem.update(zip(keys, values))
         self._loaded.add(name)
+        if len(self._loaded) > MAX_SHARDS:
+            return self.compact()
         return shard
+
+    def put(self, keys, values) -> Path | None:
+        raise NotImplementedError
+
+    def compact(self) -> Path | None:
+        """Rewrite all shards as one (written atomically before the old ones go; shards that
+        another process writes meanwhile are left alone). Returns the merged shard."""
+        self.refresh()
+        old = [self.path / n for n in self._loaded]
+        if len(old) <= 1:
+            return old[0] if old else None
+        keys = sorted(self._mem)
+        self._loaded = set()
+        new = self.put(keys, [self._mem[k] for k in keys])
+        for p in old:
+            if p != new:
+                p.unlink(missing_ok=True)
+        return new
 
     @staticmethod
     def _missing(keys, texts, found) -> dict[str, str]:
@@ -137,19 +178,6 @@ class EmbeddingCache(_ShardCache):
         if not keys:
             return None
         return self._write(keys, emb, emb=emb)
-
-    def compact(self) -> None:
-        """Rewrite all shards as one (atomically written before the old ones go)."""
-        self.refresh()
-        old = [self.path / n for n in self._loaded]
-        if len(old) <= 1:
-            return
-        keys = sorted(self._mem)
-        self._loaded = set()
-        new = self.put(keys, np.stack([self._mem[k] for k in keys]))
-        for p in old:
-            if p != new:
-                p.unlink(missing_ok=True)
 
     def encode(self, encoder, texts) -> np.ndarray:
         """``encoder(texts)`` with cached rows reused; new ones encoded once and stored."""
@@ -247,3 +275,6 @@ class TokenCache(_ShardCache):
     def encode(self, encoder, texts, max_tokens: int) -> tuple[np.ndarray, np.ndarray]:
         """``(tokens [B, max_tokens, D] float32, mask [B, max_tokens] bool)`` for ``texts``."""
         return pad_tokens(self.states(encoder, texts), max_tokens, encoder.dim)
+
+
+_OPEN: dict[tuple, _ShardCache] = {}  # _ShardCache.shared's opened caches

@@ -130,10 +130,10 @@ def embed_one(text: str, cache_dir: Path | None, text_tokens: int = 0):
     else:
         st = (minilm_dir() / "model.safetensors").stat()
         version = f"size={st.st_size},mtime={st.st_mtime_ns}"
-        emb = _cached_one(EmbeddingCache(cache_dir), cache_key(TEXT_ENCODER, version, text), pooled)
+        emb = _cached_one(EmbeddingCache.shared(cache_dir), cache_key(TEXT_ENCODER, version, text), pooled)
         states = None
         if text_tokens:
-            states = _cached_one(TokenCache(cache_dir.parent / (cache_dir.name + "-tokens")),
+            states = _cached_one(TokenCache.shared(cache_dir.parent / (cache_dir.name + "-tokens")),
                                  cache_key(f"{TEXT_ENCODER}:tokens", version, text), words)
     emb = np.asarray(emb, np.float32)[None]
     if not text_tokens:

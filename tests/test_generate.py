@@ -247,6 +247,7 @@ def test_what_was_understood_is_said(result, ckpt):
 
 
 def test_text_embedding_cache(tmp_path):
+    from jaxmotion.text.cache import close_shared
     from jaxmotion.text.condition import embed_one, text_encoder
 
     fresh = embed_one("sit on the sofa", tmp_path)
@@ -254,5 +255,6 @@ def test_text_embedding_cache(tmp_path):
     np.testing.assert_array_equal(embed_one("sit on the sofa", tmp_path), fresh)  # from the file
     np.testing.assert_allclose(fresh, text_encoder()(["sit on the sofa"]), atol=1e-6)
     next(tmp_path.glob("*.npz")).write_bytes(b"broken")  # a damaged entry is recomputed
+    close_shared()  # (by a new process: this one holds the entry in memory)
     with pytest.warns(UserWarning, match="unreadable embedding shard"):
         np.testing.assert_array_equal(embed_one("sit on the sofa", tmp_path), fresh)

@@ -28,8 +28,8 @@ import numpy as np
 
 from jaxmotion._atomic import atomic_open
 
-__all__ = ["MAX_SHARDS", "EmbeddingCache", "TokenCache", "cache_key", "dataset_cache_dir",
-           "encode_cached", "pad_tokens"]
+__all__ = ["MAX_SHARDS", "EmbeddingCache", "TokenCache", "cache_key", "close_shared",
+           "dataset_cache_dir", "encode_cached", "pad_tokens"]
 
 #: A cache of more shards than this is merged into one by the write that passes it.
 MAX_SHARDS = 32
@@ -278,3 +278,9 @@ class TokenCache(_ShardCache):
 
 
 _OPEN: dict[tuple, _ShardCache] = {}  # _ShardCache.shared's opened caches
+
+
+def close_shared() -> None:
+    """Forget the caches :meth:`EmbeddingCache.shared` / :meth:`TokenCache.shared` opened (their
+    entries leave memory; the next call reads the folder again, as a new process would)."""
+    _OPEN.clear()

@@ -84,7 +84,12 @@ class MiniLM(nnx.Module):
 
     def __call__(self, ids, mask):
         """ids [B, T] int32, mask [B, T] → unit-norm sentence embeddings [B, D] float32."""
-        x = self.hidden_states(ids, mask)
+        return self.pool(self.hidden_states(ids, mask), mask)
+
+    @staticmethod
+    def pool(x, mask):
+        """Hidden states x [B, T, D] → the unit-norm mean over the real tokens [B, D]
+        (sentence-transformers' mean pooling and normalisation)."""
         m = mask.astype(x.dtype)[..., None]
         mean = (x * m).sum(1) / jnp.maximum(m.sum(1), 1e-9)
         norm = jnp.linalg.norm(mean, axis=-1, keepdims=True)

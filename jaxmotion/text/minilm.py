@@ -137,6 +137,14 @@ class TextEncoder:
 
         self._forward_tokens = forward_tokens
 
+        @jax.jit
+        def forward_both(state, ids, mask):  # one pass: the pooled embedding and the states
+            model = nnx.merge(graphdef, state)
+            x = model.hidden_states(ids, mask)
+            return model.pool(x, mask), x
+
+        self._forward_both = forward_both
+
     @property
     def checksum(self) -> str:
         if self._checksum is None:
@@ -272,16 +280,27 @@ def _canonical_order(cfg: BertConfig) -> list[tuple[tuple, str, bool]]:
 def encode_one_cached(text: str, cache_dir, *, tokens: bool = False, folder=None) -> np.ndarray:
     """One sentence through a traced forward kept on disk (:func:`jaxmotion.compiled.cached_call`):
     the pooled embedding ``[dim]``, or with ``tokens`` the token states ``[n_tokens, dim]`` —
-    the same numbers as :class:`TextEncoder`'s batch of one (same program, same padding).
+    the numbers of :class:`TextEncoder`'s batch of one (same network, same padding).
 
     A fresh process otherwise spends about a second building the network before it can
     encode a new sentence; here it reads the weights as arrays (they are the program's
     arguments, so the file on disk stays small), tokenises, and runs the deserialised program.
-    The network is built only when the program is not on disk yet; the weights are read
-    and the program loaded once per process."""
+    One program gives both outputs, and a sentence is encoded once per process: asking for
+    its token states after its embedding (the ADM reads words) costs nothing more. The
+    network is built only when the program is not on disk yet; the weights are read and the
+    program loaded once per process."""
+    folder = Path(folder) if folder is not None else minilm_dir()
+    pooled, states = _encode_one(text, str(Path(cache_dir)), str(folder))
+    return (states if tokens else pooled).copy()
+
+
+@functools.lru_cache(maxsize=256)
+def _encode_one(text: str, cache_dir: str, folder: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(pooled [dim], token states [n_tokens, dim])`` of one sentence (see
+    :func:`encode_one_cached`)."""
     from jaxmotion.compiled import cached_call
 
-    folder = Path(folder) if folder is not None else minilm_dir()
+    folder = Path(folder)
     max_length = max_seq_length(folder)
     tok = _fast_tokenizer(str(folder / "tokenizer.json"), max_length)
     ids = tok.encode(text).ids
@@ -303,19 +322,18 @@ def encode_one_cached(text: str, cache_dir, *, tokens: bool = False, folder=None
         if [tuple(p) for p in paths] != [p for p, _, _ in order]:
             raise AssertionError("MiniLM's state is not flattened in the canonical order; "
                                  "update _canonical_order")
-        fwd = enc._forward_tokens if tokens else enc._forward
         turn = [transpose for _, _, transpose in order]
 
         def run(leaves, ids, mask):  # the weights as stored: the kernels turned in the program
             leaves = [leaf.T if t else leaf for leaf, t in zip(leaves, turn)]
-            return fwd(jax.tree_util.tree_unflatten(treedef, leaves), ids, mask)
+            return enc._forward_both(jax.tree_util.tree_unflatten(treedef, leaves), ids, mask)
 
         return run
 
-    out = cached_call(Path(cache_dir), "minilm-tokens" if tokens else "minilm",
-                      f"{st.st_size},{st.st_mtime_ns}", build, (leaves, arr, mask))
-    out = np.asarray(out, np.float32)[0]
-    return out[:len(ids)] if tokens else out
+    pooled, states = cached_call(Path(cache_dir), "minilm", f"{st.st_size},{st.st_mtime_ns}",
+                                 build, (leaves, arr, mask))
+    return (np.asarray(pooled, np.float32)[0],
+            np.asarray(states, np.float32)[0, :len(ids)])
 
 
 @functools.lru_cache(maxsize=1)

@@ -135,7 +135,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     from jaxmotion.pipelines.object_centric import prefetch_sampler
     from jaxmotion.scene.checks import scene_warnings
     from jaxmotion.scene.demo import load_scene_arg
-    from jaxmotion.text.condition import blank_condition, embed_one
+    from jaxmotion.text.condition import blank_condition, embed_one, prefetch_encoder
 
     times: dict[str, float] = {}
     t0 = [time.perf_counter()]
@@ -149,20 +149,21 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
 
     xla_cache = enable_compilation_cache()
     aot_dir = xla_cache / "programs" if opts.aot else None
-    versions = (jax.__version__, __version__)
-    root = seed_key_data(opts.seed)  # jax.random.key(seed)'s data, made on the host
+    versions, root = (jax.__version__, __version__), seed_key_data(opts.seed)  # key data
     if models.files and opts.pipeline in ("auto", "object-centric"):  # loads while grounding
         prefetch_sampler(opts, models.files, root, aot_dir, versions)
+    prefetch_encoder(text, texts := xla_cache / "text-embeddings")  # if the text is new
     room = load_scene_arg(scene, opts.num_points)
     if room.num_points == 0:
         raise GenerateError("the scene has no points")
     for message in scene_warnings(room):
         warnings.warn(message, UserWarning, stacklevel=3)
     target_obj = None if opts.object_id is None else find_object(room, opts.object_id)
-    instruction = read_instruction(text, similarity=(texts := xla_cache / "text-embeddings"))
-    emb = embed_one(text, texts, 0)  # the ADM's words: when it runs
+    instruction = read_instruction(text, similarity=texts)
+    # encoded when first needed (an ADM that runs loads its program meanwhile)
+    emb = functools.cache(lambda: embed_one(text, texts, 0))
     text_emb = functools.cache(lambda: embed_one(text, texts, t)
-                               if (t := adm_text_tokens(models.adm_config)) else emb)
+                               if (t := adm_text_tokens(models.adm_config)) else emb())
     # the root key's stage keys (region / room view, then sampling) are split in the compiled
     # programs, or eagerly on the paths that need the first (an XLA compilation, ~0.1 s)
     stage_key = lambda i: jax.random.split(jax.random.wrap_key_data(root))[i]  # noqa: E731
@@ -208,7 +209,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         from jaxmotion.pipelines.object_centric import sample_in_room
 
         joints, crop, exact = sample_in_room(room, centre, chosen, instruction.anchor_first,
-                                             emb, opts, models.files, root, aot_dir, versions,
+                                             emb(), opts, models.files, root, aot_dir, versions,
                                              sampled_action(instruction.action, how, chosen))
     if pipeline != "affordance":
         aff, excluded, n_cand, n_mot = (np.zeros((k, len(crop[0]), 6), np.float32), (), 0,

@@ -159,6 +159,25 @@ def test_a_prefetched_program_is_the_one_called(tmp_path):
     assert C.prefetched() == ()
 
 
+def test_a_new_sentence_s_encoder_loads_while_the_scene_is_read(tmp_path):
+    """A sentence not in the embedding cache starts the encoder's kept program loading (as
+    generate does before it reads the scene), and its encoding takes that program; a cached
+    sentence starts nothing."""
+    import jaxmotion.compiled as C
+    from jaxmotion.text.condition import embed_one, prefetch_encoder, text_encoder
+
+    cache = tmp_path / "xla" / "text-embeddings"
+    assert not prefetch_encoder("sit on the sofa", cache)  # no program on disk yet
+    embed_one("sit on the sofa", cache)  # traces and keeps it
+    C.release()  # as a new process
+    assert prefetch_encoder("walk to the sofa", cache)  # the same length bucket
+    assert len(C.prefetched()) == 1
+    emb = embed_one("walk to the sofa", cache)
+    assert C.prefetched() == ()
+    np.testing.assert_allclose(emb[0], text_encoder()(["walk to the sofa"])[0], atol=1e-6)
+    assert not prefetch_encoder("walk to the sofa", cache)  # in the cache now
+
+
 def test_the_adm_s_kept_program_loads_while_the_text_encodes(ckpt, tmp_path, monkeypatch):
     """With candidates to choose among, a repeated generate starts loading the ADM's kept
     program before the text condition is computed, and the choice takes it."""

@@ -134,6 +134,11 @@ def test_what_the_reader_says_it_guessed_or_ignored():
     assert read_phrasing("mosey over to the door").action_how == "destination"
     assert read_phrasing("sit on the big beanbag thing").object_phrase == "beanbag thing"
     assert read_phrasing("sit on the chairman").object_phrase == "chairman"  # not a chair
+    # the room itself, or a kind of room, is no object to find by meaning
+    for text in ("dance around the bathroom", "walk around the kitchen",
+                 "sit down in the living room", "wander through the hallway"):
+        assert read_phrasing(text).object_phrase == "", text
+    assert read_phrasing("sit on the kitchen beanbag").object_phrase == "kitchen beanbag"
     assert "it" in read_phrasing("could you kick the chair").query.split()
     assert "could" not in read_phrasing("could you kick the chair").query
 

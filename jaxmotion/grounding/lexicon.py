@@ -15,8 +15,8 @@ from __future__ import annotations
 
 __all__ = ["ACTION_PHRASES", "ACTION_PROTOTYPES", "ANCHOR_SIDES", "CATEGORY_WORDS",
            "CLAUSE_BREAKS", "DETERMINERS", "DIRECT_PREPOSITIONS", "FILLER", "GENERIC_TARGETS",
-           "IDIOMS", "NEGATIONS", "PARTICIPLES", "RELATED", "RELATION_PHRASES", "SEAT_AT",
-           "SUPERLATIVES", "UNSUPPORTED_RELATIONS", "VERB_FORMS", "WEAK_VERBS"]
+           "IDIOMS", "NEGATIONS", "PARTICIPLES", "RELATED", "RELATION_PHRASES", "ROOM_WORDS",
+           "SEAT_AT", "SUPERLATIVES", "UNSUPPORTED_RELATIONS", "VERB_FORMS", "WEAK_VERBS"]
 
 # --------------------------------------------------------------------------- objects
 #: canonical class -> the words people use for it (the class name itself included).
@@ -261,6 +261,12 @@ UNSUPPORTED_RELATIONS = ("to the left of", "to the right of", "left of", "right 
                          "in the centre")
 
 # --------------------------------------------------------------------------- the rest
+#: words for the room itself or a kind of room: "dance around the kitchen", "sit down in the
+#: living room" name no object (the action is done in the room the user gave).
+ROOM_WORDS = ("room", "rooms", "kitchen", "bathroom", "bedroom", "lounge", "office", "study",
+              "hall", "hallway", "corridor", "lobby", "house", "home", "apartment", "flat",
+              "studio", "space", "area", "place", "scene", "environment")
+
 #: politeness and filler, dropped before reading (base forms).
 FILLER = ("please", "pls", "plz", "kindly", "could you", "can you", "would you",
           "will you", "would you mind", "i would like you to", "i would like to",

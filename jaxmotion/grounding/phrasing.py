@@ -439,6 +439,8 @@ def _object_phrase(raw, free, chosen) -> str:
             words.append(raw[j])
         if len(words) == 3:
             break
+    if words and words[-1] in lx.ROOM_WORDS:  # "the (living) room", "the kitchen": no object
+        return ""
     return " ".join(words)
 
 

@@ -18,7 +18,8 @@ import numpy as np
 from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.errors import GenerateError
 
-__all__ = ["check_text", "embed_one", "pooled_text", "text_encoder"]
+__all__ = ["blank_condition", "check_text", "embed_one", "pooled_text", "prefetch_encoder",
+           "text_encoder"]
 
 
 @functools.lru_cache(maxsize=1)
@@ -140,6 +141,22 @@ def embed_one(text: str, cache_dir: Path | None, text_tokens: int = 0):
         return emb
     tokens, mask = pad_tokens([states], int(text_tokens), emb.shape[1])
     return {"pooled": emb, "tokens": tokens, "mask": mask}
+
+
+def prefetch_encoder(text: str, cache_dir: Path | None) -> bool:
+    """Start loading the sentence encoder's one-sentence program in the background when
+    :func:`embed_one` will need it (``text``'s embedding is not in the cache ``cache_dir``), so
+    that it loads while the scene and the instruction are read. Returns whether it started."""
+    from jaxmotion.text import EmbeddingCache, cache_key
+    from jaxmotion.text.minilm import minilm_dir, prefetch_one
+
+    if cache_dir is None:
+        return False
+    st = (minilm_dir() / "model.safetensors").stat()
+    key = cache_key(TEXT_ENCODER, f"size={st.st_size},mtime={st.st_mtime_ns}", text)
+    if key in EmbeddingCache.shared(cache_dir):
+        return False
+    return prefetch_one(text, Path(cache_dir).parent / "programs")
 
 
 def blank_condition(text_tokens: int = 0, dim: int = 384):

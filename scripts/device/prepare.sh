@@ -8,9 +8,10 @@
 #     the image lacks (trimesh, jaxopt, tensorboardX, mannequin-x, nanomanifold);
 #   - the MiniLM weights as float16 (44 MB; the float32 ones are 87 MB): token states differ by
 #     ~1e-3 relative, below the float16 rounding of the token cache (JAXMOTION_MINILM_DIR);
-#     of the word-embedding matrix only the rows DATA_DIR's texts use travel (22 MB in all;
-#     scripts/device/minilm_vocab.py, put back by train.sh), so the device encodes only the
-#     texts of a dataset built as DATA_DIR was;
+#     of the word-embedding matrix only the rows the instruction generator's words (either
+#     phrasing, PHRASING=rich in train.sh too) and DATA_DIR's texts use travel (22 MB in all;
+#     scripts/device/minilm_vocab.py, put back by train.sh, which checks that every text of
+#     the dataset it builds is covered before it encodes);
 #   - the segmentation backbone's weights and the 2,000-room set's stats.npz (the normalisation
 #     the shipped models use).
 # Usage: bash scripts/device/prepare.sh [SEGMENTATION_WORKDIR] [DATA_DIR]
@@ -36,7 +37,8 @@ for name in ("tokenizer.json", "config.json", "sentence_bert_config.json"):
 save_file({k: v.astype(np.float16) for k, v in load_file(str(src / "model.safetensors")).items()},
           ".dev/minilm16/model.safetensors")
 PY
-# the word-embedding rows the dataset's texts use, not all 30,522 (23 MB less; exact for them)
+# the word-embedding rows the generator's words and the dataset's texts use, not all 30,522
+# (23 MB less; exact for them)
 python3 scripts/device/minilm_vocab.py prune .dev/minilm16 "$DATA"
 du -sh .dev
 echo "staged; the repo and .dev together must stay under 64 MiB"

@@ -15,7 +15,9 @@
 #      under 16 MB, so the Orbax checkpoint (16+ MB with the optimiser state) stays behind:
 #      resume on a fresh machine with init_from=<model.safetensors> instead.
 # Device call:  LIMIT=550 [TASK=amdm] bash scripts/device/train.sh      (carry: [".dev"])
-# Settings (environment): TASK, SCENES, SPLIT, D (work folder there), TRAIN_ARGS (key=value
+# Settings (environment): TASK, SCENES, SPLIT, D (work folder there), PHRASING (the
+# instructions' phrasing, default | rich: jaxmotion synth --phrasing; the rich dataset is built
+# in its own folder, $D/synth-rich), TRAIN_ARGS (key=value
 # overrides appended to the defaults below, e.g. "crop.centre=room crop.size=8" for the room view,
 # or "model.target_input=true" for the ADM that reads a known target, shipped since session 11).
 # TASK=trajectory / TASK=completion continue the shipped object-centric models (same CPU size;
@@ -40,7 +42,11 @@ case "$TASK" in adm|amdm|trajectory|completion) ;;
   *) echo "TASK must be adm, amdm, trajectory or completion, got '$TASK'"; exit 2;; esac
 SCENES=${SCENES:-5000}
 SPLIT=${SPLIT:-2000}
+PHRASING=${PHRASING:-default}
+case "$PHRASING" in default|rich) ;;
+  *) echo "PHRASING must be default or rich, got '$PHRASING'"; exit 2;; esac
 D=${D:-/root/jm}
+SYN=$D/synth$([ "$PHRASING" = rich ] && echo -rich)
 PY=${PY:-python3}
 OUT=${OUT:?set OUT, the folder whose files come back}
 mkdir -p "$D" "$OUT"
@@ -57,20 +63,23 @@ if [ -f .dev/minilm16/vocab_rows.npz ]; then  # pruned by prepare.sh: put the ro
 fi
 echo "== $(date +%T) start; $(nproc) cpus"
 $PY -c "import jax, flax; print('jax', jax.__version__, jax.devices(), 'flax', flax.__version__)" || exit 1
-if [ ! -f "$D/synth/manifest.json" ]; then
-  echo "== $(date +%T) synth $SCENES rooms (split over the first $SPLIT)"
+if [ ! -f "$SYN/manifest.json" ]; then
+  echo "== $(date +%T) synth $SCENES rooms (split over the first $SPLIT), $PHRASING phrasing"
   JAX_PLATFORMS=cpu timeout $((LIMIT - 45 - ($(date +%s) - T0))) $PY -m jaxmotion synth \
-    --out "$D/synth" --scenes "$SCENES" --split-scenes "$SPLIT" --per-scene 10 --seed 0 \
-    --workers "$(nproc)" --no-stats > "$D/synth.log" 2>&1
+    --out "$SYN" --scenes "$SCENES" --split-scenes "$SPLIT" --per-scene 10 --seed 0 \
+    --phrasing "$PHRASING" --workers "$(nproc)" --no-stats > "$D/synth.log" 2>&1
   tail -c 300 "$D/synth.log"; echo
 fi
-if [ -f "$D/synth/manifest.json" ]; then
-  [ -f "$D/synth/stats.npz" ] || cp .dev/stats.npz "$D/synth/stats.npz"
-  if [ ! -f "$D/encoded" ]; then
+if [ -f "$SYN/manifest.json" ]; then
+  [ -f "$SYN/stats.npz" ] || cp .dev/stats.npz "$SYN/stats.npz"
+  if [ ! -f "$SYN/encoded" ]; then
+    if [ -f .dev/minilm16/vocab_rows.npz ]; then  # every word of the texts must have travelled
+      $PY scripts/device/minilm_vocab.py check .dev/minilm16 "$SYN" || exit 1
+    fi
     echo "== $(date +%T) encode"
-    $PY scripts/device/encode_texts.py "$D/synth" && touch "$D/encoded"
+    $PY scripts/device/encode_texts.py "$SYN" && touch "$SYN/encoded"
   fi
-  if [ -f "$D/encoded" ] && ! pgrep -f "jaxmotion.train" > /dev/null; then
+  if [ -f "$SYN/encoded" ] && ! pgrep -f "jaxmotion.train" > /dev/null; then
     echo "== $(date +%T) train"
     rm -f "$D/train.log"
     if [ "$TASK" = amdm ]; then
@@ -84,7 +93,7 @@ if [ -f "$D/synth/manifest.json" ]; then
         init_from=$PWD/jaxmotion/assets/adm.safetensors grounding_every=500 grounding_cases=256"
     fi
     # shellcheck disable=SC2086  # TASK_ARGS and TRAIN_ARGS are word lists
-    setsid nohup $PY -m jaxmotion.train $TASK_ARGS data_dir="$D/synth" workdir="$D/run" \
+    setsid nohup $PY -m jaxmotion.train $TASK_ARGS data_dir="$SYN" workdir="$D/run" \
       batch_size=64 steps=60000 optim.lr=1e-4 optim.warmup_steps=100 log_every=100 \
       eval_every=1000 ckpt_every=500 keep_checkpoints=1 loader_workers=12 \
       progress=false ${TRAIN_ARGS:-} > "$D/train.log" 2>&1 < /dev/null &

@@ -160,8 +160,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         warnings.warn(message, UserWarning, stacklevel=3)
     target_obj = None if opts.object_id is None else find_object(room, opts.object_id)
     instruction = read_instruction(text, similarity=texts)
-    # encoded when first needed (an ADM that runs loads its program meanwhile)
-    emb = functools.cache(lambda: embed_one(text, texts, 0))
+    emb = functools.cache(lambda: embed_one(text, texts, 0))  # encoded when first needed
     text_emb = functools.cache(lambda: embed_one(text, texts, t)
                                if (t := adm_text_tokens(models.adm_config)) else emb())
     # the root key's stage keys (region / room view, then sampling) are split in the compiled

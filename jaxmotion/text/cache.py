@@ -11,10 +11,10 @@ no shard or a complete one, and concurrent writers never clobber each other
 
 All shards are read into memory when the cache is opened (45k texts × 384
 floats ≈ 70 MB). :meth:`EmbeddingCache.compact` merges them into one shard, and a cache
-that has grown past :data:`MAX_SHARDS` shards is merged by the write that passes it: a user's
-cache, which gains a shard for every new sentence, stays a few files to read (one file
-per sentence, opened by every new process, had made ``generate`` slower with every
-sentence typed). :meth:`EmbeddingCache.shared` keeps one opened cache per folder in a process.
+that has grown past :data:`MAX_SHARDS` shards is merged by the write that passes it, so a
+cache that gains a shard for every new sentence (``generate``'s) stays a few files for every
+new process to read. :meth:`EmbeddingCache.shared` keeps one opened cache per folder in a
+process.
 """
 
 from __future__ import annotations

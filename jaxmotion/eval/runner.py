@@ -107,13 +107,22 @@ class ModelSpec:
     anchor: float = 1.0  # object-centric: anchor guidance strength on the trajectory (0 = off)
     standing: float = 1.0  # object-centric: standing-height guidance on the trajectory (0 = off)
     feet: float = 1.0  # object-centric: foot guidance strength on the completion (0 = off)
+    cvae: str | None = None  # the HUMANISE cVAE samples the row (the ADM, AMDM set the crops)
 
     @property
     def object_centric(self) -> bool:
         return self.trajectory is not None
 
     @property
+    def pipeline(self) -> str:
+        """Which pipeline samples the row's motions: affordance, object-centric or cvae."""
+        return ("object-centric" if self.object_centric else
+                "cvae" if self.cvae is not None else "affordance")
+
+    @property
     def sampler_label(self) -> str:
+        if self.cvae is not None:
+            return "cVAE (one latent z ~ N(0, I) per motion)"
         label = "DDPM (all steps)" if self.method == "ddpm" else f"DDIM-{self.steps}"
         if self.object_centric:
             label = "object-centric, " + label
@@ -151,8 +160,8 @@ def _checked(text: str, check, *args):
 def parse_model(text: str) -> ModelSpec:
     """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,consistency=S]
     [,affordance=adm|gt][,adm_candidates=C][,adm_steps=N][,motion_candidates=M]
-    [,trajectory=T,completion=C[,keep_trajectory=1|0][,anchor=S][,standing=S][,feet=S]]`` →
-    :class:`ModelSpec` (the
+    [,trajectory=T,completion=C[,keep_trajectory=1|0][,anchor=S][,standing=S][,feet=S]]
+    [,cvae=W]`` → :class:`ModelSpec` (the
     ``--model`` syntax). ``adm_steps``: DDIM steps of the ADM stage when they differ from the
     sampler's (as ``jaxmotion generate --adm-steps``).
     ``adm_candidates`` (generate protocol only): C ADM maps per sample, the one lighting the
@@ -170,7 +179,10 @@ def parse_model(text: str) -> ModelSpec:
     ``anchor`` is the strength in [0, 1] of the trajectory stage's anchor guidance (default 1;
     0 = off, :mod:`jaxmotion.diffusion.anchor_guidance`), ``standing`` of its standing-height
     guidance (the same module) and ``feet`` of the completion stage's foot guidance
-    (:mod:`jaxmotion.diffusion.foot_guidance`), both default 1."""
+    (:mod:`jaxmotion.diffusion.foot_guidance`), both default 1. ``cvae`` (a ``configs/cvae.py``
+    run's workdir or weights file): the HUMANISE cVAE samples the row's motions, one latent
+    per motion, in the crops the ADM and AMDM set (as ``generate --pipeline cvae``); the
+    sampler options then do not apply."""
     name, sep, rest = text.partition("=")
     usage = (f"--model {text!r}: expected NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G]"
              "[,amdm_guidance=G][,consistency=S][,affordance=adm|gt], e.g. "
@@ -196,7 +208,7 @@ def parse_model(text: str) -> ModelSpec:
     objects = {}
     for opt in options:
         key, _, value = opt.partition("=")
-        if key in ("trajectory", "completion"):
+        if key in ("trajectory", "completion", "cvae"):
             objects[key] = value
             continue
         if key == "keep_trajectory":
@@ -243,14 +255,22 @@ def parse_model(text: str) -> ModelSpec:
                                           "adm_candidates", "adm_steps",
                                           "motion_candidates", "trajectory", "completion",
                                           "keep_trajectory", "anchor", "standing",
-                                          "feet"]))
+                                          "feet", "cvae"]))
         try:
             guidance[key] = float(value)
         except ValueError:
             raise ValueError(f"--model {text!r}: {key} must be a number, got {value!r}") from None
         if not guidance[key] > 0:
             raise ValueError(f"--model {text!r}: {key} must be > 0 (1 = no guidance)")
-    if objects and not {"trajectory", "completion"} <= set(objects):
+    if "cvae" in objects:
+        if set(objects) - {"cvae"}:
+            raise ValueError(f"--model {text!r}: a row is sampled by one pipeline: give cvae= "
+                             "or trajectory= and completion=, not both")
+        if affordance == "gt" or consistency or candidates > 1 or motions > 1:
+            raise ValueError(f"--model {text!r}: affordance, consistency, adm_candidates and "
+                             "motion_candidates act on the diffusion pipelines; a cvae row "
+                             "draws one latent per motion")
+    elif objects and not {"trajectory", "completion"} <= set(objects):
         raise ValueError(f"--model {text!r}: the object-centric pipeline needs both "
                          "trajectory=PATH and completion=PATH")
     if objects and (affordance == "gt" or consistency or candidates > 1):
@@ -536,9 +556,10 @@ def evaluate(
         if evaluator is None or recognizer is not None:
             raise ValueError("protocol 'text' scores text-motion agreement: it needs an "
                              "evaluator (--evaluator) and reads no action recognizer")
-        if any(m.object_centric for m in models):
-            raise ValueError("protocol 'text' has no target object; the object-centric "
-                             "pipeline needs one (give ADM,AMDM rows only)")
+        if any(m.pipeline != "affordance" for m in models):
+            raise ValueError("protocol 'text' scores the affordance pipeline's text-to-motion "
+                             "on a floor; the object-centric pipeline needs a target object "
+                             "and the cVAE a room (give ADM,AMDM rows only)")
         fps, body = check_text_data(data_dir, evaluator), False
     encoder = load_text_encoder(TEXT_ENCODER)
     phys = physical_fn(body, fps)
@@ -575,7 +596,7 @@ def evaluate(
         emb = pipe.embed_text([c["text"] for c in cases], encoder)
         amdm_sampler = SamplerSpec(spec.method, spec.steps, guidance=spec.amdm_guidance,
                                    consistency=spec.consistency)
-        two_stage = pipe.amdm.cfg.scene_input == "affordance" and not spec.object_centric
+        two_stage = pipe.amdm.cfg.scene_input == "affordance" and spec.pipeline == "affordance"
         oracle = spec.affordance == "gt"
         objects = None
         if spec.object_centric:
@@ -591,6 +612,9 @@ def evaluate(
 
             objects = ObjectCentricPipeline.from_files(weights_path(spec.trajectory),
                                                        weights_path(spec.completion))
+        cvae = None
+        if spec.cvae is not None:
+            cvae = _cvae_sampler(spec, cases, encoder)
         if spec.adm_candidates > 1 and (protocol != "generate" or oracle or pipe.room_view):
             raise ValueError(f"--model {spec.name!r}: adm_candidates picks the ADM map that "
                              "lights the object generate's region was centred on; it needs "
@@ -634,6 +658,8 @@ def evaluate(
                         keep_trajectory=spec.keep_trajectory, anchor_guidance=spec.anchor,
                         standing_guidance=spec.standing, foot_guidance=spec.feet,
                         action=np.array([action_index(a) for a in acts]), avoid=avoid))
+                elif cvae is not None:
+                    res = {"joints": cvae(jax.random.fold_in(key, start), x, idx)}
                 else:
                     res = jax.device_get(pipe.sample(
                         jax.random.fold_in(key, start), x["points"], x["colors"], take_text(emb, idx),
@@ -688,10 +714,12 @@ def evaluate(
         report["models"][spec.name] = {
             "adm": str(spec.adm), "amdm": str(spec.amdm), "sampler": spec.sampler_label,
             "two_stage": two_stage,
-            "scene_input": "sensors" if spec.object_centric else pipe.amdm.cfg.scene_input,
-            "pipeline": "object-centric" if spec.object_centric else "affordance",
+            "scene_input": {"object-centric": "sensors", "cvae": "rgb"}.get(
+                spec.pipeline, pipe.amdm.cfg.scene_input),
+            "pipeline": spec.pipeline,
             **({"trajectory": str(spec.trajectory), "completion": str(spec.completion)}
                if spec.object_centric else {}),
+            **({"cvae": str(spec.cvae)} if spec.cvae is not None else {}),
             "affordance": "ground truth" if oracle else ("adm" if two_stage else None),
             "adm_arch": _adm_arch(spec.adm),
             "replications": reps,
@@ -724,6 +752,35 @@ def evaluate(
         report["ground_truth"].update(_speed_percentiles(rows))
     bar.close()
     return report
+
+
+def _cvae_sampler(spec: ModelSpec, cases: list[dict], encoder):
+    """``(key, inputs, idx) -> joints [B, T, 22, 3]`` (NumPy): one cVAE motion per row of the
+    batch ``inputs`` (:func:`~jaxmotion.data.cases.case_inputs` of cases ``idx``), one latent
+    each; the words' token states of every case's text are computed once here. A
+    :class:`ValueError` names a cVAE whose crops or length differ from the cases'."""
+    import jax
+
+    from jaxmotion.pipelines.cvae import CVAEPipeline
+    from jaxmotion.text import pad_tokens
+
+    cv = CVAEPipeline.from_file(spec.cvae)
+    points, frames = cases[0]["points"].shape[0], cases[0]["mask"].shape[0]
+    want = int(cv.run_config["model"]["num_points"])
+    if want != points or cv.frames != frames:
+        raise ValueError(f"--model {spec.name!r}: the cVAE {spec.cvae} reads {want} points "
+                         f"and makes {cv.frames} frames, but the cases (from the AMDM's config) "
+                         f"have {points} points and {frames} frames; give an AMDM with the "
+                         f"cVAE's crop.num_points and max_frames")
+    tokens, token_mask = pad_tokens(encoder.token_states([c["text"] for c in cases]),
+                                    int(cv.run_config["model"]["text_tokens"]), encoder.dim)
+    run = jax.jit(lambda key, p, c, t, tm, b, m: cv.sample(key, p, c, t, tm, b, m, 1)
+                  ["joints"][:, 0])
+
+    def sample(key, x, idx):
+        return np.asarray(jax.device_get(run(key, x["points"], x["colors"], tokens[idx],
+                                             token_mask[idx], x["betas"], x["mask"])))
+    return sample
 
 
 def load_eval_cases(data_dir, split, amdm_config, num_cases, seed, regions, adm_config=None,

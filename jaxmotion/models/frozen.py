@@ -24,16 +24,30 @@ __all__ = ["ADMNet", "load_adm", "load_backbone"]
 
 
 def load_backbone(workdir=None, *, tensors=None, model_config=None, prefix="", source=""):
-    """The frozen segmentation backbone, from ``<workdir>/model.safetensors`` or from tensors
-    and a model config (as embedded in an ADM weights file)."""
+    """The frozen segmentation backbone, from a segmentation run (its workdir or
+    ``.safetensors``), from an ADM's weights (workdir or file: the backbone it embeds, e.g.
+    ``jaxmotion/assets/adm.safetensors``, so new ADMs can train on the shipped backbone), or
+    from tensors and a model config."""
     from jaxmotion.models.configs import PointTransformerConfig
     from jaxmotion.models.segmentation import PointTransformerSeg
     from jaxmotion.models.weights import abstract_module, apply_weights, load_weights, weights_path
 
     if workdir is not None:
-        source = f"{workdir}/model.safetensors"
-        tensors, saved = load_weights(weights_path(workdir))
-        model_config = saved["model"]
+        path = weights_path(workdir)
+        if not path.exists():
+            raise FileNotFoundError(
+                f"no backbone weights at {path}: train one with 'python -m jaxmotion.train "
+                f"--config configs/segmentation.py' or name an ADM's weights file, whose "
+                f"backbone is embedded (e.g. jaxmotion/assets/adm.safetensors)")
+        source = str(path)
+        tensors, saved = load_weights(path)
+        if saved.get("task") == "adm":
+            model_config, prefix = saved["backbone_model"], "backbone/"
+        elif saved.get("task", "segmentation") == "segmentation":
+            model_config = saved["model"]
+        else:
+            raise ValueError(f"{source} is a {saved.get('task')!r} checkpoint; the backbone "
+                             f"comes from a segmentation run or an ADM's weights")
     pt_cfg = config_from_dict(PointTransformerConfig, model_config)
     net = abstract_module(lambda: PointTransformerSeg(pt_cfg, rngs=nnx.Rngs(0)))
     apply_weights(net, tensors, prefix=prefix, source=source)

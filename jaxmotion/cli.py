@@ -604,7 +604,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "(classifier-free guidance scale per stage, default 1), consistency=S "
                    "(affordance-consistency guidance strength in [0, 1], default 0) and "
                    "affordance=gt (the "
-                   "AMDM on ground-truth maps: the AMDM's own error); repeat for more rows")
+                   "AMDM on ground-truth maps: the AMDM's own error); trajectory=T,completion=C: "
+                   "the object-centric pipeline samples the row; cvae=W: the HUMANISE cVAE "
+                   "does (the ADM and AMDM still set the crops); repeat for more rows")
     p.add_argument("--split", default="test", choices=("train", "val", "test"))
     p.add_argument("--cases", type=int, default=None,
                    help="cases from the split (default 64; with --descriptions: all)")

@@ -476,8 +476,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--unit", default="auto",
                    help="BVH: metres per file unit, or auto (default)")
     q.add_argument("--joint-map", default="auto",
-                   help="BVH: auto, cmu, mixamo, mocapbank, smplx, jaxmotion or a JSON file "
-                   "{smplx_joint: bvh_joint} (End Sites: <parent>_End)")
+                   help="BVH: auto, cmu, mixamo, mocapbank, cc (Character Creator / iClone), "
+                   "smplx, jaxmotion or a JSON file {smplx_joint: bvh_joint} (End Sites: "
+                   "<parent>_End)")
     q.add_argument("--no-stats", action="store_true", help="skip the normalisation statistics")
     q.set_defaults(func=_cmd_data_convert)
 

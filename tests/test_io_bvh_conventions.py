@@ -217,3 +217,164 @@ def test_mixamo_export_layout(tmp_path):
     assert heading(j[0]) == pytest.approx(-np.pi / 2, abs=1e-6)
     assert heading(j[1]) == pytest.approx(0.0, abs=1e-6)
     assert j[0, J["l_collar"], 0] > 0 and j[0, J["l_wrist"], 0] > 0.5
+
+
+# ----------------------------------------------------------------------------- Character Creator
+# Reallusion Character Creator / iClone exports (the CMU takes retargeted in iClone are
+# published so): ``CC_Base_`` names, twist, share, toe and face bones, 60 fps
+# (``Frame Time: 0.016667``), centimetres. Two layouts: the hip as the root (y up), or a
+# ``RL_BoneRoot`` root turned -90 deg about x over a z-up rig whose hip has no position
+# channels.
+def _cc_tree(rl_root=False):
+    """A CC skeleton (cm, facing +z, left = +x); with ``rl_root`` the same body in a z-up rig
+    under ``RL_BoneRoot`` (every offset (a, b, c) written (a, -c, b))."""
+    def o(a, b, c):
+        return (a, -c, b) if rl_root else (a, b, c)
+
+    def arm(s, x):
+        return _node(f"CC_Base_{s}_Clavicle", o(x * 6, 21, 0), [
+            _node(f"CC_Base_{s}_Upperarm", o(x * 12, 0, 0), [
+                _node(f"CC_Base_{s}_UpperarmTwist01", o(x * 10, 0, 0), end=o(x * 10, 0, 0)),
+                _node(f"CC_Base_{s}_Forearm", o(x * 26, 0, 0), [
+                    _node(f"CC_Base_{s}_Hand", o(x * 25, 0, 0), [
+                        _node(f"CC_Base_{s}_Mid1", o(x * 8, 0, 0), end=o(x * 4, 0, 0))])])])])
+
+    def leg(s, x):
+        return _node(f"CC_Base_{s}_Thigh", o(x * 10, -2, 0), [
+            _node(f"CC_Base_{s}_ThighTwist01", o(0, -10, 0), end=o(0, -10, 0)),
+            _node(f"CC_Base_{s}_Calf", o(0, -45, 0), [
+                _node(f"CC_Base_{s}_Foot", o(0, -45, 0), [
+                    _node(f"CC_Base_{s}_ToeBaseShareBone", o(0, -8, 12), end=o(0, 0, 2)),
+                    _node(f"CC_Base_{s}_ToeBase", o(0, -8, 12), [
+                        _node(f"CC_Base_{s}_BigToe1", o(x * -2, 0, 3), end=o(0, 0, 2))])])])])
+
+    head = _node("CC_Base_Head", o(0, 4, 0), [
+        _node("CC_Base_FacialBone", o(0, 5, 3), end=o(0, 5, 0))])
+    spine = _node("CC_Base_Waist", o(0, 8, 0), [_node("CC_Base_Spine01", o(0, 5, 0), [
+        _node("CC_Base_Spine02", o(0, 14, 0), [
+            _node("CC_Base_NeckTwist01", o(0, 27, 0), [
+                _node("CC_Base_NeckTwist02", o(0, 4, 0), [head])]),
+            arm("L", 1), arm("R", -1)])])])
+    pelvis = _node("CC_Base_Pelvis", (0, 0, 0), [leg("L", 1), leg("R", -1)])
+    rot = ["Zrotation", "Yrotation", "Xrotation"]
+    if not rl_root:
+        return _node("CC_Base_Hip", (0, 100, 0), [pelvis, spine])
+    hip = _node("CC_Base_Hip", o(0, 100, 0), [pelvis, spine], channels=rot)
+    return _node("RL_BoneRoot", (0, 0, 0), [hip])
+
+
+def test_character_creator_layouts_read_with_the_built_in_map(tmp_path):
+    root = ["Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"]
+    hip_root = tmp_path / "hip_root.bvh"
+    hip_root.write_text(_bvh_text(_cc_tree(), [{"CC_Base_Hip": [0, 100, 0, 0, 0, 0]}] * 2,
+                                  "0.016667", "ZYX", root, tab="    "))
+    rl_root = tmp_path / "rl_root.bvh"
+    rl_root.write_text(_bvh_text(_cc_tree(rl_root=True), [{"RL_BoneRoot": [0, 0, 0, 0, 0, -90]}]
+                                 * 2, "0.016667", "ZYX", root, tab="    "))
+    for path in (hip_root, rl_root):
+        m = load_motion(path)
+        assert m.info["joint_map"] == "cc" and m.info["unit"] == pytest.approx(0.01)
+        assert m.fps == 60.0 and m.joints.shape == (2, 22, 3)
+        j = np.asarray(m.joints[0], np.float64)
+        np.testing.assert_allclose(j[J["pelvis"]], _y_to_z([0, 100, 0]), atol=1e-6)
+        np.testing.assert_allclose(j[J["l_hip"]], _y_to_z([10, 98, 0]), atol=1e-6)
+        np.testing.assert_allclose(j[J["l_knee"]], _y_to_z([10, 53, 0]), atol=1e-6)
+        np.testing.assert_allclose(j[J["l_ankle"]], _y_to_z([10, 8, 0]), atol=1e-6)
+        # the foot is the ToeBase joint (not the share bone's or the big toe's End Site)
+        np.testing.assert_allclose(j[J["l_foot"]], _y_to_z([10, 0, 12]), atol=1e-6)
+        np.testing.assert_allclose(j[J["r_foot"]], _y_to_z([-10, 0, 12]), atol=1e-6)
+        np.testing.assert_allclose(j[J["spine1"]], _y_to_z([0, 113, 0]), atol=1e-6)
+        np.testing.assert_allclose(j[J["spine2"]], _y_to_z([0, 127, 0]), atol=1e-6)
+        np.testing.assert_allclose(j[J["neck"]], _y_to_z([0, 154, 0]), atol=1e-6)
+        np.testing.assert_allclose(j[J["head"]], _y_to_z([0, 162, 0]), atol=1e-6)
+        np.testing.assert_allclose(j[J["l_collar"]], _y_to_z([6, 148, 0]), atol=1e-6)
+        np.testing.assert_allclose(j[J["l_shoulder"]], _y_to_z([18, 148, 0]), atol=1e-6)
+        np.testing.assert_allclose(j[J["l_elbow"]], _y_to_z([44, 148, 0]), atol=1e-6)
+        np.testing.assert_allclose(j[J["l_wrist"]], _y_to_z([69, 148, 0]), atol=1e-6)
+        np.testing.assert_allclose(j[J["r_wrist"]], _y_to_z([-69, 148, 0]), atol=1e-6)
+        # spine3 has no CC joint: filled in between Spine02 and the neck
+        assert j[J["spine2"], 2] < j[J["spine3"], 2] < j[J["neck"], 2]
+        # left is +x and the body faces -y (the file's +z): not mirrored
+        assert heading(j) == pytest.approx(-np.pi / 2, abs=1e-6)
+        assert not m.info["rest_frame_dropped"]
+
+
+# ----------------------------------------------------------------------------- CMU rest frame
+# CMU conversions that put the rest pose (a T-pose: whole-number rotations, the root where the
+# capture starts) before the capture as frame 0, in the cgspeed skeleton (``Hips, LHipJoint,
+# LeftUpLeg, ..., LowerBack, Spine, Spine1, Neck, Neck1, Head, LeftShoulder, LeftArm, ...``,
+# ``Zrotation Yrotation Xrotation``, CMU units, ``Frame Time: .0083333`` without a leading 0).
+def _cgspeed_tree():
+    """A cgspeed-style CMU skeleton in CMU units (~5.6 cm), y up, facing +z (left = +x)."""
+    def arm(side, s):
+        return _node(f"{side}Shoulder", (0, 0, 0), [
+            _node(f"{side}Arm", (s * 3, 1, 0), [_node(f"{side}ForeArm", (s * 5, 0, 0), [
+                _node(f"{side}Hand", (s * 3, 0, 0), end=(s * 1, 0, 0))])])])
+
+    def leg(side, s):
+        return _node(f"{side[0]}HipJoint", (0, 0, 0), [
+            _node(f"{side}UpLeg", (s * 2, -1, 0), [_node(f"{side}Leg", (0, -7, 0), [
+                _node(f"{side}Foot", (0, -7, 0), [
+                    _node(f"{side}ToeBase", (0, -1, 2), end=(0, 0, 1))])])])])
+
+    neck = _node("Neck", (0, 0, 0), [_node("Neck1", (0, 2, 0), [
+        _node("Head", (0, 2, 0), end=(0, 2, 0))])])
+    back = _node("LowerBack", (0, 0, 0), [_node("Spine", (0, 2, 0), [
+        _node("Spine1", (0, 2, 0), [neck, arm("Left", 1), arm("Right", -1)])])])
+    return _node("Hips", (0, 0, 0), [leg("Left", 1), leg("Right", -1), back])
+
+
+def _cgspeed_file(path, frames):
+    root = ["Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"]
+    text = _bvh_text(_cgspeed_tree(), frames, "0.0083333", "ZYX", root)
+    path.write_text(text.replace("Frame Time: 0.0083333", "Frame Time: .0083333"))
+    return path
+
+
+# seated: thighs forward (-90 deg about x), shins down (+90), the captured values have decimals
+SEATED = {"Hips": [0.2, 9.1, 0.3, 0.0, 0.0, 0.0], "LeftUpLeg": [0.0, 0.0, -90.1],
+          "RightUpLeg": [0.0, 0.0, -89.9], "LeftLeg": [0.0, 0.0, 90.2],
+          "RightLeg": [0.0, 0.0, 89.8]}
+# the rest pose before it: legs straight, arms down (whole numbers), at the seated root
+REST = {"Hips": [0.2, 9.1, 0.3, 0, 0, 0], "LeftArm": [-80, 0, 0], "RightArm": [80, 0, 0]}
+
+
+def _moved(row, dx):
+    out = {k: list(v) for k, v in row.items()}
+    out["Hips"][0] += dx
+    return out
+
+
+def test_leading_rest_pose_frame_is_dropped(tmp_path):
+    capture = [SEATED, _moved(SEATED, 0.01), _moved(SEATED, 0.02)]
+    path = _cgspeed_file(tmp_path / "111_10.bvh", [REST] + capture)
+    m = load_motion(path)
+    assert m.info["joint_map"] == "cmu" and m.info["unit"] == pytest.approx(0.056444)
+    assert m.fps == 120.0 and m.info["rest_frame_dropped"] and m.num_frames == 3
+    j = np.asarray(m.joints, np.float64)
+    # the seated capture: hips at 9.1 units, thigh forward 7, shin down 7, toe 1 lower and 2
+    # forward: the toe (2.2, 0.1, 9.3) units, on the floor (the rest pose's straight legs
+    # reach 6.9 units, 39 cm, below it); the knees at seat height in front of the hips
+    np.testing.assert_allclose(j[0, J["l_foot"]], _y_to_z([2.2, 0.11, 9.3]) * 5.6444,
+                               atol=1e-3)
+    assert j[0, J["l_knee"], 2] == pytest.approx(j[0, J["l_hip"], 2], abs=1e-3)
+    assert j[0, J["l_knee"], 1] < j[0, J["l_hip"], 1] - 0.3
+    # keep: every frame, the rest pose first (legs straight down, below the floor)
+    kept = load_motion(path, first_frame="keep")
+    assert kept.num_frames == 4 and not kept.info["rest_frame_dropped"]
+    np.testing.assert_allclose(kept.joints[1:], m.joints, atol=1e-6)
+    assert kept.joints[0, J["l_foot"], 2] < -0.05
+    with pytest.raises(MotionFormatError, match="first_frame must be 'auto'.*or 'keep'"):
+        load_motion(path, first_frame="drop")
+
+
+def test_rest_frame_rule_keeps_real_first_frames(tmp_path):
+    # every frame whole numbers (keyframed files, the tests' own): nothing dropped
+    whole = [REST, {"Hips": [0, 16, 0, 0, 0, 0]}, {"Hips": [0, 16, 0, 0, 0, 5]}]
+    assert load_motion(_cgspeed_file(tmp_path / "a.bvh", whole)).num_frames == 3
+    # an animation that starts at the rest pose and moves on smoothly: frame 0 -> 1 is no jump
+    smooth = [REST, {**REST, "LeftArm": [-79.7, 0.0, 0.0]}, {**REST, "LeftArm": [-79.4, 0.0, 0.0]}]
+    m = load_motion(_cgspeed_file(tmp_path / "b.bvh", smooth))
+    assert m.num_frames == 3 and not m.info["rest_frame_dropped"]
+    # two frames: no second step to compare the jump with
+    assert load_motion(_cgspeed_file(tmp_path / "c.bvh", [REST, SEATED])).num_frames == 2

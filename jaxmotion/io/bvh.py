@@ -22,11 +22,11 @@ Mapping to SMPL-X
 -----------------
 A joint map ``{smplx_joint_name: bvh_joint_name}`` picks the BVH joint whose position is
 each SMPL-X joint (``joint_map``: ``"auto"``, ``"cmu"``, ``"mixamo"``, ``"mocapbank"``,
-``"smplx"``, a dict, or a JSON file holding the dict). Names match exactly, else ignoring case and any
-namespace prefix up to the last ``:`` (``mixamorig:Hips`` = ``Hips``). ``"auto"`` takes
-the first built-in map (smplx, jaxmotion, mixamo, cmu, mocapbank) whose every name is in the
-file (a built-in map may list alternatives for a joint, the first in the file is used, and
-mark a joint as optional, it is then filled in as below).
+``"cc"``, ``"smplx"``, a dict, or a JSON file holding the dict). Names match exactly, else
+ignoring case and any namespace prefix up to the last ``:`` (``mixamorig:Hips`` = ``Hips``).
+``"auto"`` takes the first built-in map (smplx, jaxmotion, mixamo, cmu, mocapbank, cc) whose
+every name is in the file (a built-in map may list alternatives for a joint, the first in the
+file is used, and mark a joint as optional, it is then filled in as below).
 
 - ``cmu`` (the CMU/cgspeed 31-joint skeleton): pelvis Hips; hips LeftUpLeg/RightUpLeg;
   knees LeftLeg/RightLeg; ankles LeftFoot/RightFoot; feet LeftToeBase/RightToeBase;
@@ -42,6 +42,13 @@ mark a joint as optional, it is then filled in as below).
   Site ``LeftAnkle_End`` (the toe tip); shoulders, elbows, wrists LeftShoulder/LeftElbow/
   LeftWrist; and the Right ones. spine3 and the collars are filled in: MocapBank's
   LeftCollar sits on the neck's point, SMPL-X's collar 8 cm lower and 4.5 cm to the side.
+- ``cc`` (Reallusion Character Creator 3+ / iClone exports, ``CC_Base_`` names, with or
+  without the ``RL_BoneRoot`` root; e.g. the CMU takes retargeted in iClone): pelvis
+  CC_Base_Hip; spine1 CC_Base_Spine01; spine2 CC_Base_Spine02; neck CC_Base_NeckTwist01;
+  head CC_Base_Head; hips, knees, ankles, feet CC_Base_L_Thigh/L_Calf/L_Foot/L_ToeBase;
+  collars, shoulders, elbows, wrists CC_Base_L_Clavicle/L_Upperarm/L_Forearm/L_Hand; and the
+  R_ ones. spine3 is filled in (CC_Base_Waist, 8 cm above the hip, is not used). The twist,
+  share, finger, toe and face bones are ignored.
 - ``smplx``: SMPL-X's own joint names (``SMPLX_JOINT_NAMES``: ``pelvis``, ``left_hip``,
   …; the SMPL-X Blender add-on's bones), as jaxmotion's BVH export
   (:func:`jaxmotion.export.write_bvh`) writes them.
@@ -66,6 +73,19 @@ neutral SMPL-X body's (1.54 m) for metres, CMU units (0.056444 m), centimetres a
 millimetres, and the closest within a factor of two wins; otherwise pass ``unit``.
 ``fps`` resamples (linear interpolation of joint positions); default: the file's rate,
 ``1 / Frame Time``, rounded to a whole number when within 0.05 % of one (0.008333 s: 120).
+
+A leading rest pose
+-------------------
+Some releases put the skeleton's rest pose (a T-pose) before the capture as frame 0 (CMU
+conversions that prepend it for retargeting: every rotation channel a whole number of
+degrees, 0, ±21, ..., the root where the capture starts). Read as motion, it is a jump of
+up to a metre into the first captured pose, and its straight legs reach below the captured
+feet, so putting the lowest foot on the floor lifts the whole capture off it.
+``first_frame="auto"`` (default) drops frame 0 when it is such a pose: all of its rotation
+channels are whole numbers while frame 1's are not, the file has at least 3 frames, and
+some joint moves farther from frame 0 to 1 than 5 times the most any joint moves from frame
+1 to 2 plus 3 % of the body's extent. ``info["rest_frame_dropped"]`` says whether it was;
+``first_frame="keep"`` keeps every frame.
 """
 
 from __future__ import annotations
@@ -107,7 +127,14 @@ _MIXAMO = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "S
 _MOCAPBANK: dict[str, str | tuple[str | None, ...]] = {
     "pelvis": "Hips", "spine1": "Chest", "spine2": ("Chest2", None), "neck": "Neck",
     "head": "Head"}
+_CC: dict[str, str | tuple[str | None, ...]] = {
+    "pelvis": "CC_Base_Hip", "spine1": "CC_Base_Spine01", "spine2": "CC_Base_Spine02",
+    "neck": "CC_Base_NeckTwist01", "head": "CC_Base_Head"}
+_CC_LIMB = {"hip": "Thigh", "knee": "Calf", "ankle": "Foot", "foot": "ToeBase",
+            "collar": "Clavicle", "shoulder": "Upperarm", "elbow": "Forearm", "wrist": "Hand"}
 for _p, _side in _SIDES:
+    for _k, _v in _CC_LIMB.items():
+        _CC[_p + _k] = f"CC_Base_{_side[0]}_{_v}"
     for _k, _v in _LIMB.items():
         _CMU[_p + _k] = _MIXAMO[_p + _k] = _side + _v
     for _k in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist"):
@@ -122,6 +149,7 @@ JOINT_MAPS: dict[str, dict[str, str | tuple[str | None, ...]]] = {
     "mixamo": _MIXAMO,
     "cmu": _CMU,
     "mocapbank": _MOCAPBANK,
+    "cc": _CC,
 }
 REQUIRED_JOINTS = ("pelvis", "l_foot", "r_foot", "head", "l_wrist", "r_wrist")
 UNITS = {"metres": 1.0, "cmu": 0.056444, "centimetres": 0.01, "millimetres": 0.001}
@@ -129,6 +157,31 @@ UNITS = {"metres": 1.0, "cmu": 0.056444, "centimetres": 0.01, "millimetres": 0.0
 _CHAIN_CHILD = {1: 4, 2: 5, 3: 6, 4: 7, 5: 8, 6: 9, 7: 10, 8: 11, 9: 12, 12: 15, 13: 16,
                 14: 17, 16: 18, 17: 19, 18: 20, 19: 21}
 _HEIGHT_CHAIN = (7, 4, 1, 0, 3, 6, 9, 12, 15)  # l_ankle ... head: unit detection
+FIRST_FRAME_MODES = ("auto", "keep")
+
+
+def _rotation_columns(bvh: BVH) -> np.ndarray:
+    """Indices of the rotation channels in a frame row."""
+    cols, col = [], 0
+    for chans in bvh.channels:
+        cols += [col + c for c, ch in enumerate(chans) if ch[1:].lower() == "rotation"]
+        col += len(chans)
+    return np.asarray(cols, dtype=int)
+
+
+def _leading_rest_frame(bvh: BVH, world: np.ndarray) -> bool:
+    """Whether frame 0 is a rest pose put before the capture (module docstring): whole-number
+    rotations in frame 0 only, and a jump from it far larger than frame 1 -> 2's."""
+    if bvh.frames.shape[0] < 3:
+        return False
+    rot = bvh.frames[:2, _rotation_columns(bvh)]
+    whole = np.all(np.abs(rot - np.round(rot)) < 1e-6, axis=1)
+    if rot.shape[1] == 0 or not whole[0] or whole[1]:
+        return False
+    jump = float(np.linalg.norm(world[1] - world[0], axis=-1).max())
+    step = float(np.linalg.norm(world[2] - world[1], axis=-1).max())
+    extent = float(np.ptp(world[1], axis=0).max())  # the body's size, file units
+    return jump > 5.0 * step + 0.03 * extent
 
 
 def _matcher(names: tuple[str, ...]):
@@ -329,7 +382,7 @@ def _detect_unit(joints0: np.ndarray, where: str) -> float:
 
 
 def load_bvh(path, *, up: str = "y", unit="auto", fps: float | None = None,
-             joint_map="auto") -> Motion:
+             joint_map="auto", first_frame: str = "auto") -> Motion:
     """Read a BVH file as a :class:`~jaxmotion.io.Motion` of the 22 SMPL-X body joints.
 
     Args:
@@ -338,17 +391,22 @@ def load_bvh(path, *, up: str = "y", unit="auto", fps: float | None = None,
       unit: metres per file unit, or ``"auto"`` (detected from the skeleton's size).
       fps: resample to this rate (linear interpolation), or None for the file's rate.
       joint_map: ``"auto"``, a built-in map (``"cmu"``, ``"mixamo"``, ``"mocapbank"``,
-        ``"smplx"``, ``"jaxmotion"``), a dict ``{smplx_joint: bvh_joint}`` or a JSON file of
-        one (End Sites are named ``<parent>_End``).
+        ``"cc"``, ``"smplx"``, ``"jaxmotion"``), a dict ``{smplx_joint: bvh_joint}`` or a JSON
+        file of one (End Sites are named ``<parent>_End``).
+      first_frame: ``"auto"`` (default) drops a leading rest pose (T-pose) frame, ``"keep"``
+        keeps every frame (see the module docstring).
     Returns:
       joints ``[T, 22, 3]`` metres, z-up; no SMPL-X parameters, no texts. ``info`` records
-      the joint map, the unit and the up axis used.
+      the joint map, the unit, the up axis used and whether a rest frame was dropped.
     Raises MotionFormatError naming the file and the fix.
     """
     path = Path(path)
     where = str(path)
     if up not in ("y", "z"):
         raise MotionFormatError(f"{where}: up must be 'y' or 'z', got {up!r}")
+    if first_frame not in FIRST_FRAME_MODES:
+        raise MotionFormatError(f"{where}: first_frame must be 'auto' (drop a leading rest "
+                                f"pose) or 'keep' (keep every frame), got {first_frame!r}")
     if not path.is_file():
         raise MotionFormatError(f"{where}: no such file")
     try:
@@ -369,6 +427,9 @@ def load_bvh(path, *, up: str = "y", unit="auto", fps: float | None = None,
     names = bvh.names + end_site_names(bvh)
     map_name, index = resolve_joint_map(names, joint_map, where=where)
     world = bvh_world_positions(bvh, where=where, end_sites=True)
+    rest_dropped = first_frame == "auto" and _leading_rest_frame(bvh, world)
+    if rest_dropped:
+        world = world[1:]
     joints = np.zeros((world.shape[0], NUM_JOINTS, 3))
     joints[:, index >= 0] = world[:, index[index >= 0]]
     joints = _fill_missing(joints, index)
@@ -389,5 +450,6 @@ def load_bvh(path, *, up: str = "y", unit="auto", fps: float | None = None,
     if abs(rate - round(rate)) < 5e-4 * rate:  # "Frame Time: 0.008333" means 120 fps
         rate = float(round(rate))
     motion = Motion(joints=joints, fps=rate, source=where,
-                    info={"format": "bvh", "joint_map": map_name, "unit": scale, "up": up})
+                    info={"format": "bvh", "joint_map": map_name, "unit": scale, "up": up,
+                          "rest_frame_dropped": bool(rest_dropped)})
     return motion if fps is None else motion.resampled(fps)

@@ -287,3 +287,26 @@ def test_runner_with_a_cvae_row(tiny_runs, tmp_path):
     with pytest.raises(ValueError, match="reads 128 points"):
         evaluate(out["data"], [parse_model(f"h={root / 'adm'},{root / 'amdm'},"
                                            f"cvae={tmp_path / 'cvae128'}")], **kw)
+
+
+def test_backbone_from_an_adm_weights_file(tiny_runs):
+    """``backbone_workdir`` may name an ADM's weights: the backbone it embeds is loaded (its
+    parameters are the file's ``params/backbone/`` tensors); another task's file is refused.
+    (Not the shared segmentation run: a test elsewhere moves it away for a while.)"""
+    from flax import nnx
+
+    from jaxmotion.models.frozen import load_backbone
+    from jaxmotion.models.weights import flatten_state, load_weights
+
+    root, _ = tiny_runs
+    loaded = flatten_state(nnx.state(load_backbone(root / "adm"), nnx.Param))
+    tensors, _ = load_weights(root / "adm" / "model.safetensors")
+    embedded = {k[len("params/backbone/"):]: v for k, v in tensors.items()
+                if k.startswith("params/backbone/")}
+    assert loaded.keys() == embedded.keys() and embedded
+    for k in embedded:
+        np.testing.assert_array_equal(loaded[k], embedded[k])
+    with pytest.raises(ValueError, match="'amdm' checkpoint"):
+        load_backbone(root / "amdm")
+    with pytest.raises(FileNotFoundError, match="no backbone weights"):
+        load_backbone(root / "missing")

@@ -242,7 +242,6 @@ def test_runner_with_an_evaluator_adds_text_motion_columns(tiny_runs, tmp_path):
     assert "FID ↓" in md and "| dataset motions |" in md
 
 
-
 def test_parse_model_cvae_row():
     m = parse_model("h=x,y,cvae=runs/cvae")
     assert m.cvae == "runs/cvae" and m.pipeline == "cvae" and not m.object_centric

@@ -276,22 +276,16 @@ def test_character_creator_layouts_read_with_the_built_in_map(tmp_path):
         assert m.info["joint_map"] == "cc" and m.info["unit"] == pytest.approx(0.01)
         assert m.fps == 60.0 and m.joints.shape == (2, 22, 3)
         j = np.asarray(m.joints[0], np.float64)
-        np.testing.assert_allclose(j[J["pelvis"]], _y_to_z([0, 100, 0]), atol=1e-6)
-        np.testing.assert_allclose(j[J["l_hip"]], _y_to_z([10, 98, 0]), atol=1e-6)
-        np.testing.assert_allclose(j[J["l_knee"]], _y_to_z([10, 53, 0]), atol=1e-6)
-        np.testing.assert_allclose(j[J["l_ankle"]], _y_to_z([10, 8, 0]), atol=1e-6)
         # the foot is the ToeBase joint (not the share bone's or the big toe's End Site)
-        np.testing.assert_allclose(j[J["l_foot"]], _y_to_z([10, 0, 12]), atol=1e-6)
-        np.testing.assert_allclose(j[J["r_foot"]], _y_to_z([-10, 0, 12]), atol=1e-6)
-        np.testing.assert_allclose(j[J["spine1"]], _y_to_z([0, 113, 0]), atol=1e-6)
-        np.testing.assert_allclose(j[J["spine2"]], _y_to_z([0, 127, 0]), atol=1e-6)
-        np.testing.assert_allclose(j[J["neck"]], _y_to_z([0, 154, 0]), atol=1e-6)
-        np.testing.assert_allclose(j[J["head"]], _y_to_z([0, 162, 0]), atol=1e-6)
-        np.testing.assert_allclose(j[J["l_collar"]], _y_to_z([6, 148, 0]), atol=1e-6)
-        np.testing.assert_allclose(j[J["l_shoulder"]], _y_to_z([18, 148, 0]), atol=1e-6)
-        np.testing.assert_allclose(j[J["l_elbow"]], _y_to_z([44, 148, 0]), atol=1e-6)
-        np.testing.assert_allclose(j[J["l_wrist"]], _y_to_z([69, 148, 0]), atol=1e-6)
-        np.testing.assert_allclose(j[J["r_wrist"]], _y_to_z([-69, 148, 0]), atol=1e-6)
+        expected = {"pelvis": (0, 100, 0), "l_hip": (10, 98, 0), "l_knee": (10, 53, 0),
+                    "l_ankle": (10, 8, 0), "l_foot": (10, 0, 12), "r_foot": (-10, 0, 12),
+                    "spine1": (0, 113, 0), "spine2": (0, 127, 0), "neck": (0, 154, 0),
+                    "head": (0, 162, 0), "l_collar": (6, 148, 0), "l_shoulder": (18, 148, 0),
+                    "l_elbow": (44, 148, 0), "l_wrist": (69, 148, 0),
+                    "r_wrist": (-69, 148, 0)}
+        for name, y_up in expected.items():
+            np.testing.assert_allclose(j[J[name]], _y_to_z(list(y_up)), atol=1e-6,
+                                       err_msg=f"{path.name}: {name}")
         # spine3 has no CC joint: filled in between Spine02 and the neck
         assert j[J["spine2"], 2] < j[J["spine3"], 2] < j[J["neck"], 2]
         # left is +x and the body faces -y (the file's +z): not mirrored

@@ -117,7 +117,7 @@ def _cmd_data_convert(args: argparse.Namespace) -> int:
         options["fps"] = args.fps
     if args.kind == "bvh":
         options.update(up=args.up, unit=args.unit, joint_map=args.joint_map)
-    elif (args.up, args.unit, args.joint_map) != ("y", "auto", "auto"):
+    elif (args.up, args.unit, args.joint_map) != ("auto", "auto", "auto"):
         raise ValueError("--up, --unit and --joint-map apply to BVH files only")
     manifest = convert(args.kind, args.src, args.out, stats=not args.no_stats, **options)
     src = manifest["sources"]
@@ -472,7 +472,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="SMPL-X fitting iterations for joint-only sources (0: analytic start)")
     q.add_argument("--keep-height", action="store_true",
                    help="keep the source heights (default: feet put on the floor z = 0)")
-    q.add_argument("--up", choices=("y", "z"), default="y", help="BVH: up axis of the files")
+    q.add_argument("--up", choices=("auto", "y", "z"), default="auto",
+                   help="BVH: up axis of the files (auto: the axis the head is above the "
+                   "pelvis along)")
     q.add_argument("--unit", default="auto",
                    help="BVH: metres per file unit, or auto (default)")
     q.add_argument("--joint-map", default="auto",

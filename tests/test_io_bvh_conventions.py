@@ -372,3 +372,59 @@ def test_rest_frame_rule_keeps_real_first_frames(tmp_path):
     assert m.num_frames == 3 and not m.info["rest_frame_dropped"]
     # two frames: no second step to compare the jump with
     assert load_motion(_cgspeed_file(tmp_path / "c.bvh", [REST, SEATED])).num_frames == 2
+
+
+# ----------------------------------------------------------------------------- z-up, inches
+# A Vicon Shogun-style export (the layout of real 119.88 Hz captures: ``Hips, Spine, Spine1,
+# Spine2, Spine3, Neck, Head, LeftShoulder, LeftArm, ..., LeftUpLeg, LeftLeg, LeftFoot,
+# LeftToeBase``, ``Xrotation Yrotation Zrotation``, **z up**, **inches**, ``Frame Time:
+# 0.008342``). Before, it was read y-up (lying on its back) and its size (61 inches from ankle
+# to head) matched no unit.
+def _shogun_tree():
+    """Inches, z up, facing -y (left = +x): the y-up skeletons' body turned +90 deg about x."""
+    def arm(side, s):
+        return _node(f"{side}Shoulder", (s * 1, 0, 6), [
+            _node(f"{side}Arm", (s * 5, 0, 0), [_node(f"{side}ForeArm", (s * 10, 0, 0), [
+                _node(f"{side}Hand", (s * 9, 0, 0), end=(s * 3, 0, 0))])])])
+
+    def leg(side, s):
+        return _node(f"{side}UpLeg", (s * 3.5, 0, -2), [_node(f"{side}Leg", (0, 0, -17), [
+            _node(f"{side}Foot", (0, 0, -16), [
+                _node(f"{side}ToeBase", (0, -5, -2), end=(0, -2, 0))])])])
+
+    neck = _node("Neck", (0, 0, 8), [_node("Head", (0, 0, 4), end=(0, 0, 5))])
+    spine3 = _node("Spine3", (0, 0, 3), [neck, arm("Left", 1), arm("Right", -1)])
+    spine = _node("Spine", (0, 0, 3), [_node("Spine1", (0, 0, 3), [
+        _node("Spine2", (0, 0, 3), [spine3])])])
+    return _node("Hips", (0, 0, 0), [spine, leg("Left", 1), leg("Right", -1)])
+
+
+def test_z_up_inches_export(tmp_path):
+    root = ["Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation"]
+    rows = [{"Hips": [1.0, 2.0, 37.0, 0, 0, 0]}, {"Hips": [1.1, 2.0, 37.0, 0, 0, 45.0]},
+            {"Hips": [1.2, 2.0, 37.0, 0, 0, 90.0]}]
+    path = tmp_path / "tantrum.bvh"
+    path.write_text(_bvh_text(_shogun_tree(), rows, "0.008342", "XYZ", root, tab="\t"))
+    m = load_motion(path)
+    assert m.info["up"] == "z" and m.info["unit"] == pytest.approx(0.0254)
+    assert m.info["joint_map"] == "mixamo" and m.fps == pytest.approx(1 / 0.008342)
+    j = np.asarray(m.joints, np.float64) / 0.0254  # back to inches, the file's axes kept
+    # frame 0: pelvis at the root; toe 3.5 left, 5 forward (-y), 37 below the pelvis: on the
+    # floor; head 24 above it; left wrist 25 to the left, 18 up
+    np.testing.assert_allclose(j[0, J["pelvis"]], [1, 2, 37], atol=1e-3)
+    np.testing.assert_allclose(j[0, J["l_foot"]], [4.5, -3, 0], atol=1e-3)
+    np.testing.assert_allclose(j[0, J["head"]], [1, 2, 61], atol=1e-3)
+    np.testing.assert_allclose(j[0, J["l_wrist"]], [26, 2, 55], atol=1e-3)
+    # frame 2: the root turned 90 deg about z (up): the left wrist now on +y, the toes on +x
+    np.testing.assert_allclose(j[2, J["l_wrist"]], [1.2, 27, 55], atol=1e-3)
+    np.testing.assert_allclose(j[2, J["l_foot"]], [6.2, 5.5, 0], atol=1e-3)
+    # up is detected, not assumed: the same body in a y-up file is still read y-up
+    seated = load_motion(_cgspeed_file(tmp_path / "y.bvh", [SEATED, _moved(SEATED, 0.01)]))
+    assert seated.info["up"] == "y"
+    # up="y" given by hand is kept (the body then lies on its back, 1.55 m along -y)
+    lying = load_motion(path, up="y")
+    assert lying.info["up"] == "y"
+    d = np.asarray(lying.joints[0, J["head"]] - lying.joints[0, J["pelvis"]])
+    np.testing.assert_allclose(d, [0, -24 * 0.0254, 0], atol=1e-6)
+    with pytest.raises(MotionFormatError, match="up must be 'auto', 'y' or 'z'"):
+        load_motion(path, up="x")

@@ -65,11 +65,17 @@ way from spine2 to the neck; a collar: 42 % of the way from spine3 to the should
 
 Units and axes
 --------------
-``up="y"`` (BVH's usual frame, the default) is turned z-up by ``(x, y, z) → (x, −z, y)``
-(+90° about x: a body facing +z in the file faces −y); ``up="z"`` keeps the axes.
+``up="y"`` (BVH's usual frame) is turned z-up by ``(x, y, z) → (x, −z, y)`` (+90° about x:
+a body facing +z in the file faces −y); ``up="z"`` keeps the axes (Vicon / Shogun and other
+z-up exports). ``up="auto"`` (the default) takes ``"z"`` when the head is above the pelvis
+along the file's z axis by more than along its y and x axes both in most frames and in the
+rest pose (every rotation zero: the ``OFFSET`` chain), else ``"y"``. Both must agree so that
+neither a y-up capture lying along its z axis nor a y-up file whose root turns a z-up rig
+upright (Character Creator's ``RL_BoneRoot``) is taken for z-up; a z-up capture lying in every
+frame is read y-up: pass ``up="z"`` for it.
 ``unit`` is metres per file unit, or ``"auto"``: the ankle–knee–hip–pelvis–spine–neck–head
 chain of the first frame (bone lengths, so the pose does not matter) is compared with the
-neutral SMPL-X body's (1.54 m) for metres, CMU units (0.056444 m), centimetres and
+neutral SMPL-X body's (1.54 m) for metres, CMU units (0.056444 m), inches, centimetres and
 millimetres, and the closest within a factor of two wins; otherwise pass ``unit``.
 ``fps`` resamples (linear interpolation of joint positions); default: the file's rate,
 ``1 / Frame Time``, rounded to a whole number when within 0.05 % of one (0.008333 s: 120).
@@ -152,12 +158,14 @@ JOINT_MAPS: dict[str, dict[str, str | tuple[str | None, ...]]] = {
     "cc": _CC,
 }
 REQUIRED_JOINTS = ("pelvis", "l_foot", "r_foot", "head", "l_wrist", "r_wrist")
-UNITS = {"metres": 1.0, "cmu": 0.056444, "centimetres": 0.01, "millimetres": 0.001}
+UNITS = {"metres": 1.0, "cmu": 0.056444, "inches": 0.0254, "centimetres": 0.01,
+         "millimetres": 0.001}
 # The next joint down each limb (the chain a joint without a counterpart is placed on).
 _CHAIN_CHILD = {1: 4, 2: 5, 3: 6, 4: 7, 5: 8, 6: 9, 7: 10, 8: 11, 9: 12, 12: 15, 13: 16,
                 14: 17, 16: 18, 17: 19, 18: 20, 19: 21}
 _HEIGHT_CHAIN = (7, 4, 1, 0, 3, 6, 9, 12, 15)  # l_ankle ... head: unit detection
 FIRST_FRAME_MODES = ("auto", "keep")
+UP_AXES = ("auto", "y", "z")
 
 
 def _rotation_columns(bvh: BVH) -> np.ndarray:
@@ -360,6 +368,29 @@ def _fill_missing(joints: np.ndarray, index: np.ndarray) -> np.ndarray:
     return out
 
 
+def _rest_positions(bvh: BVH) -> np.ndarray:
+    """Every joint and End Site (file order, as :func:`bvh_world_positions` with
+    ``end_sites=True``) in the rest pose: the sums of the ``OFFSET``s, file units and axes."""
+    rest = np.zeros((len(bvh.names), 3))
+    for j, p in enumerate(bvh.parents):
+        rest[j] = np.asarray(bvh.offsets[j], np.float64) + (rest[p] if p >= 0 else 0.0)
+    ends = [rest[p] + np.asarray(off, np.float64) for p, off in bvh.end_sites]
+    return np.concatenate([rest, np.reshape(ends, (-1, 3))], axis=0)
+
+
+def _z_above(d: np.ndarray) -> bool:
+    return bool(d[2] > 0 and d[2] > abs(d[1]) and d[2] > abs(d[0]))
+
+
+def _detect_up(bvh: BVH, world: np.ndarray, index: np.ndarray) -> str:
+    """``"z"`` when the head is above the pelvis along the file's z axis (more than along y
+    and x) in most frames and in the rest pose; else ``"y"`` (module docstring)."""
+    head, pelvis = int(index[15]), int(index[0])
+    posed = np.median(world[:, head] - world[:, pelvis], axis=0)
+    rest = _rest_positions(bvh)
+    return "z" if _z_above(posed) and _z_above(rest[head] - rest[pelvis]) else "y"
+
+
 def _detect_unit(joints0: np.ndarray, where: str) -> float:
     """Metres per file unit from the first frame's ankle-to-head chain (module docstring)."""
     rest = rest_joints_host()
@@ -381,13 +412,14 @@ def _detect_unit(joints0: np.ndarray, where: str) -> float:
     return unit
 
 
-def load_bvh(path, *, up: str = "y", unit="auto", fps: float | None = None,
+def load_bvh(path, *, up: str = "auto", unit="auto", fps: float | None = None,
              joint_map="auto", first_frame: str = "auto") -> Motion:
     """Read a BVH file as a :class:`~jaxmotion.io.Motion` of the 22 SMPL-X body joints.
 
     Args:
       path: the ``.bvh`` file.
-      up: ``"y"`` (default) or ``"z"``, the file's up axis (see the module docstring).
+      up: ``"auto"`` (default: detected from the head's side of the pelvis), ``"y"`` or
+        ``"z"``, the file's up axis (see the module docstring).
       unit: metres per file unit, or ``"auto"`` (detected from the skeleton's size).
       fps: resample to this rate (linear interpolation), or None for the file's rate.
       joint_map: ``"auto"``, a built-in map (``"cmu"``, ``"mixamo"``, ``"mocapbank"``,
@@ -397,13 +429,14 @@ def load_bvh(path, *, up: str = "y", unit="auto", fps: float | None = None,
         keeps every frame (see the module docstring).
     Returns:
       joints ``[T, 22, 3]`` metres, z-up; no SMPL-X parameters, no texts. ``info`` records
-      the joint map, the unit, the up axis used and whether a rest frame was dropped.
+      the joint map, the unit, the up axis used (``"y"`` or ``"z"``, also when detected)
+      and whether a rest frame was dropped.
     Raises MotionFormatError naming the file and the fix.
     """
     path = Path(path)
     where = str(path)
-    if up not in ("y", "z"):
-        raise MotionFormatError(f"{where}: up must be 'y' or 'z', got {up!r}")
+    if up not in UP_AXES:
+        raise MotionFormatError(f"{where}: up must be 'auto', 'y' or 'z', got {up!r}")
     if first_frame not in FIRST_FRAME_MODES:
         raise MotionFormatError(f"{where}: first_frame must be 'auto' (drop a leading rest "
                                 f"pose) or 'keep' (keep every frame), got {first_frame!r}")
@@ -433,6 +466,8 @@ def load_bvh(path, *, up: str = "y", unit="auto", fps: float | None = None,
     joints = np.zeros((world.shape[0], NUM_JOINTS, 3))
     joints[:, index >= 0] = world[:, index[index >= 0]]
     joints = _fill_missing(joints, index)
+    if up == "auto":
+        up = _detect_up(bvh, world, index)
     if unit == "auto":
         scale = _detect_unit(joints[0], where)
     else:

@@ -18,6 +18,7 @@ from jaxmotion.cli import main
 from jaxmotion.data.clip_placement import heading, transform_clip
 from jaxmotion.data.format import DatasetError, load_sample
 from jaxmotion.data.motion_library import (
+    HOLD,
     action_windows,
     frame_states,
     label_from_name,
@@ -267,6 +268,84 @@ def test_kneeling_or_squatting_bent_forward_is_not_lying():
                   [[0, 0.1, 0.07], [0, -0.1, 0.07]])
     take = np.stack([stand] * 40 + [kneel] * 60 + [stand] * 40)
     assert "lie" not in action_windows(take)
+
+
+def _body(shank, thigh, lean, heel=0.0, feet_z=0.0, reach=False):
+    """Joints [22,3] of a stick body facing +x (its left +y), its feet flat at x = 0 (ankles)
+    .. 0.14 (toes): ``shank`` the shanks' tilt from vertical, knees forward (deg); ``thigh``
+    the thighs' angle from hanging straight down (deg; 90 level, the hips behind the knees);
+    ``lean`` the torso's tilt forward (deg); ``heel`` the heels raised onto the toes (m);
+    ``feet_z`` the feet lifted off the floor (legs hanging); ``reach`` arms held forward."""
+    s, t, g = np.radians([shank, thigh, lean])
+    j = np.zeros((22, 3))
+    for side, w in (("l", 0.1), ("r", -0.1)):
+        toe = np.array([0.14, w, 0.025 + feet_z])
+        ankle = toe + [-np.sqrt(0.14**2 - heel * (heel + 0.11)), 0, 0.055 + heel]
+        knee = ankle + 0.42 * np.array([np.sin(s), 0, np.cos(s)])
+        j[JI[f"{side}_foot"]], j[JI[f"{side}_ankle"]], j[JI[f"{side}_knee"]] = toe, ankle, knee
+        j[JI[f"{side}_hip"]] = knee - 0.42 * np.array([np.sin(t), 0, -np.cos(t)])
+    pelvis = j[[JI["l_hip"], JI["r_hip"]]].mean(0) + [0, 0, 0.05]
+    up = np.array([np.sin(g), 0, np.cos(g)])
+    for name, r in (("pelvis", 0), ("spine1", 0.12), ("spine2", 0.25), ("spine3", 0.38),
+                    ("neck", 0.52), ("head", 0.64)):
+        j[JI[name]] = pelvis + r * up
+    arm = np.array([1, 0, 0] if reach else [0, 0, -1])
+    for side, w in (("l", 1), ("r", -1)):
+        j[JI[f"{side}_collar"]] = pelvis + 0.47 * up + [0, 0.07 * w, 0]
+        j[JI[f"{side}_shoulder"]] = sh = pelvis + 0.47 * up + [0, 0.18 * w, 0]
+        j[JI[f"{side}_elbow"]], j[JI[f"{side}_wrist"]] = sh + 0.28 * arm, sh + 0.53 * arm
+    return j
+
+
+def _down_and_up(pose):
+    """Standing 40 frames, 15 frames down to ``pose``, held 45 (frames 55-99), back up."""
+    stand = _body(0, 0, 0)
+    way = stand + (pose - stand) * np.linspace(0, 1, 15)[:, None, None]
+    return np.concatenate([[stand] * 40, way, [pose] * 45, way[::-1], [stand] * 40])
+
+
+def test_a_squat_is_not_seated():
+    """A squat balances its centre of mass over its feet (each torso lean below puts it 2-4 cm
+    ahead of the ankles); a seat carries a seated body's weight behind them. The squats hold
+    the seated pose's other marks (pelvis > 30 cm and 10 % low, torso > 45 deg, thighs bent),
+    as CMU 14_14's free-standing squat did, but make no sit or stand_up clip."""
+    squats = {
+        "deep, feet flat, leaning": _body(35, 105, 35),
+        "deep, on the toes, upright": _body(45, 110, 15, heel=0.07),
+        "half, feet flat, arms forward": _body(30, 90, 35, reach=True),
+        "half, on the toes, arms forward": _body(30, 90, 40, heel=0.06, reach=True),
+    }
+    for name, pose in squats.items():
+        torso, thighs = pose[JI["neck"]] - pose[JI["pelvis"]], pose[[4, 5]] - pose[[1, 2]]
+        assert 0.3 < pose[0, 2] < 0.85 and torso[2] > np.linalg.norm(torso) * np.sin(np.pi / 4)
+        assert (-thighs[:, 2] < np.linalg.norm(thighs, axis=1) * np.cos(np.pi / 4)).all()
+        take = _down_and_up(pose)
+        assert not frame_states(take)["seated"].any(), name
+        assert not {"sit", "stand_up"} & set(action_windows(take)), name
+
+
+def test_sitting_on_a_seat_stays_seated():
+    seats = {
+        "chair": _body(0, 90, 5),
+        "chair, feet tucked back": _body(15, 85, 10),
+        "low sofa, feet forward, leaning back": _body(-10, 110, -10),
+        "bar stool, legs hanging": _body(10, 90, 0, feet_z=0.3),
+    }
+    for name, pose in seats.items():
+        take = _down_and_up(pose)
+        s = frame_states(take)
+        assert s["seated"][55:100].all(), name
+        assert {"sit", "stand_up"} <= set(action_windows(take)), name
+    # rising, the body first leans its weight over its feet, the pelvis still at the seat:
+    # as a moment of the sit these frames stay seated (held alone it is a squat, not seated)
+    chair, seat_off = seats["chair"], _body(25, 80, 40, reach=True)
+    lean = chair + (seat_off - chair) * np.linspace(0, 1, 8)[:, None, None]
+    take = np.concatenate([_down_and_up(chair)[:100], lean, [seat_off] * 6,
+                           _down_and_up(seat_off)[100:]])
+    s = frame_states(take)
+    assert s["seated"][55:114].all() and not s["seated"][125:].any()
+    assert action_windows(take)["stand_up"][0] >= 114 - HOLD  # the run ends after the lean
+    assert not frame_states(_down_and_up(seat_off))["seated"].any()
 
 
 def test_a_walk_there_and_back_ends_where_it_is_farthest(motions):

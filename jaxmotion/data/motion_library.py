@@ -16,8 +16,8 @@ Action label of a file, first that applies:
 3. else the geometry decides: every action whose window (below) the file holds.
 
 Windows come from per-frame body states (:func:`frame_states`: standing, seated on
-something at least 30 cm high, lying), so a labelled file must also *show* its action (it
-is rejected, and counted, otherwise):
+something at least 30 cm high with the weight behind the feet (not squatting), lying), so a
+labelled file must also *show* its action (it is rejected, and counted, otherwise):
 
 - ``walk``: upright throughout; the first 120 frames, or, when the pelvis ends them less
   than half its path length from where it started (there and back, as a walk that turns
@@ -183,6 +183,36 @@ def label_from_name(rel: str) -> str | None:
 
 
 # ----------------------------------------------------------------------------- geometry
+# (joint a, joint b, fraction of the way a -> b, mass fraction): the segments' centres of
+# mass, after de Leva (1996); the trunk runs pelvis -> neck, the head sits at its joint
+_SEGMENTS = (
+    (0, 12, 0.5, 0.497), (15, 15, 0.0, 0.081),  # trunk, head
+    (16, 18, 0.44, 0.028), (17, 19, 0.44, 0.028),  # upper arms
+    (18, 20, 0.5, 0.022), (19, 21, 0.5, 0.022),  # forearms and hands
+    (1, 4, 0.43, 0.100), (2, 5, 0.43, 0.100),  # thighs
+    (4, 7, 0.43, 0.0465), (5, 8, 0.43, 0.0465),  # shanks
+    (7, 10, 0.5, 0.0145), (8, 11, 0.5, 0.0145),  # feet
+)  # fmt: skip
+SEAT_BEHIND = 0.10  # the centre of mass behind the feet's support: the weight is on a seat, m
+_FOOT_DOWN = 0.15  # a foot whose lowest joint (ankle, toe) is this high or lower bears weight, m
+
+
+def _behind_feet(j: np.ndarray) -> np.ndarray:
+    """``[T]`` metres the body's centre of mass lies behind the support of its feet, along the
+    direction it faces (from its hips): behind the rearmost ankle or toe joint of the feet on
+    the floor; ``inf`` when no foot is on the floor."""
+    com = sum(m * (j[:, a] + f * (j[:, b] - j[:, a])) for a, b, f, m in _SEGMENTS)
+    com = com / sum(m for *_, m in _SEGMENTS)
+    left = j[:, 1, :2] - j[:, 2, :2]
+    fwd = np.stack([left[:, 1], -left[:, 0]], 1)  # left x up
+    fwd /= np.maximum(np.linalg.norm(fwd, axis=1, keepdims=True), 1e-9)
+    feet = j[:, [7, 8, 10, 11]]  # l/r ankle, l/r toe
+    along = np.einsum("tki,ti->tk", feet[..., :2], fwd)
+    down = np.tile(np.minimum(feet[:, :2, 2], feet[:, 2:, 2]) <= _FOOT_DOWN, (1, 2))
+    rear = np.where(down, along, np.inf).min(1)
+    return rear - np.einsum("ti,ti->t", com[:, :2], fwd)
+
+
 def frame_states(joints: np.ndarray) -> dict:
     """Per-frame body states of ``joints [T,22,3]`` (z-up, floor at 0), bool ``[T]`` arrays:
 
@@ -191,7 +221,15 @@ def frame_states(joints: np.ndarray) -> dict:
       along the support too (a body kneeling or squatting while bent forward, its torso as
       level, has a thigh hanging under it or its feet under the pelvis);
     - ``seated``: torso up (> 45 deg), thighs on average > 45 deg from hanging straight down,
-      the pelvis at least 30 cm high (on furniture, not the floor) and 10 % below its highest;
+      the pelvis at least 30 cm high (on furniture, not the floor) and 10 % below its highest,
+      in a run of such frames whose weight rests on a seat for at least 6 frames in a row
+      (``_SETTLE``): the centre of mass (segment-mass-weighted joints) at least :data:`SEAT_BEHIND`
+      behind the feet's support along the facing direction (behind the rearmost ankle or toe
+      joint of the feet on the floor, the heel being a few cm behind the ankle), or no foot on
+      the floor (legs hanging from a bar stool). A squat, deep or half, on flat feet or toes,
+      upright or leaning, balances its centre of mass over its feet and is not seated; the
+      frames of a sit's run where the body leans forward to rise (or has not yet settled) stay
+      seated with the run;
     - ``standing``: torso up (> 60 deg), both thighs within 40 deg of straight down;
     - ``upright``: neither lying nor seated, the pelvis within 15 % of its highest (walking).
     """
@@ -205,8 +243,12 @@ def frame_states(joints: np.ndarray) -> dict:
     ankle_reach = np.linalg.norm(j[:, [7, 8], :2] - j[:, None, 0, :2], axis=-1)
     lying = (torso_el < 35.0) & (down.min(1) > 45.0) & (ankle_reach.min(1) > 0.35)
     standing = ~lying & (torso_el > 60.0) & (down.max(1) < 40.0)
-    seated = (~lying & (torso_el > 45.0) & (down.mean(1) > 45.0) & (height > 0.3)
-              & (height < 0.9 * height.max()))
+    sitting = (~lying & (torso_el > 45.0) & (down.mean(1) > 45.0) & (height > 0.3)
+               & (height < 0.9 * height.max()))
+    on_seat = _behind_feet(j) >= SEAT_BEHIND
+    seated = np.zeros_like(sitting)
+    for a, b in _runs(sitting, 1):
+        seated[a:b] = bool(_runs(on_seat[a:b], _SETTLE))
     upright = ~lying & ~seated & (height > 0.85 * height.max())
     return {"standing": standing, "seated": seated, "lying": lying, "upright": upright}
 

@@ -199,3 +199,25 @@ def test_anchor_refiner_puts_a_walk_at_the_bodys_walking_height():
                                atol=1e-5)
     np.testing.assert_allclose(out[..., [0, 1, 3, 4, 5, 6, 7, 8]],
                                path[..., [0, 1, 3, 4, 5, 6, 7, 8]], atol=1e-6)
+
+
+def test_the_refiner_acts_only_below_its_noise_level():
+    """``active_below``: the early (noisy) reverse steps pass the prediction through, the
+    late ones are the always-on refiner's, under jit and under vmap over candidates (the
+    sampler's noise level is not batched)."""
+    f = _seated_motion(t=16)
+    mask = jnp.ones(len(f), bool)
+    mean, std = np.zeros(MOTION_DIM, np.float32), np.full(MOTION_DIM, STD, np.float32)
+    x = jnp.asarray(f / std)[None]
+    always = jax.jit(F.make_foot_refiner(None, mask, SIT, mean, std))
+    late = jax.jit(F.make_foot_refiner(None, mask, SIT, mean, std, active_below=60))
+    early_t, late_t = jnp.full((1,), 60, jnp.int32), jnp.full((1,), 52, jnp.int32)
+    np.testing.assert_array_equal(np.asarray(late(x, early_t)), np.asarray(x))
+    np.testing.assert_allclose(np.asarray(late(x, late_t)), np.asarray(always(x, late_t)),
+                               atol=1e-6)
+    assert np.abs(np.asarray(late(x, late_t)) - np.asarray(x)).max() > 1e-3
+    candidates = jnp.stack([x, x + 0.01])
+    for t in (early_t, late_t):
+        got = jax.jit(jax.vmap(lambda y: late(y, t)))(candidates)
+        want = np.stack([np.asarray(late(y, t)) for y in candidates])
+        np.testing.assert_allclose(np.asarray(got), want, atol=1e-5)

@@ -4,9 +4,10 @@ The completion model writes the body along a root trajectory that the first stag
 without the legs. Under the generate protocol its feet came out at the wrong height for
 that root (the lowest foot a whole motion 5–13 cm above or under the floor, within a motion
 a 2–3 cm spread) and slid while they touched the floor, in seated phases most of all.
-This module corrects the predicted clean motion ``x̂0`` at every reverse step of that
-stage, as reconstruction guidance (MDM's foot-contact loss, GMD / OmniControl's spatial
-guidance, :mod:`.anchor_guidance` on the trajectory stage): a few gradient steps on the
+This module corrects the predicted clean motion ``x̂0`` at the late reverse steps of
+that stage (noise levels under :data:`ACTIVE_FRACTION` of the schedule's), as
+reconstruction guidance (MDM's foot-contact loss, GMD / OmniControl's spatial guidance,
+:mod:`.anchor_guidance` on the trajectory stage): a few gradient steps on the
 body's joint rotations lower
 
 - **sliding**: the horizontal speed (m/s, in units of 0.5 m/s, the skating threshold) of
@@ -34,7 +35,7 @@ from jaxmotion.constants import ACTION_CLASSES, FOOT_JOINTS, SCENE_FPS
 from jaxmotion.eval.skating import FOOT_FLOOR_OFFSETS
 from jaxmotion.motion.representation import TRAJECTORY_DIM, motion_to_joints
 
-__all__ = ["CONTACT_HEIGHT", "FLOOR_SCALE", "ITERATIONS", "SLIDE_SCALE", "STEP",
+__all__ = ["ACTIVE_FRACTION", "CONTACT_HEIGHT", "FLOOR_SCALE", "ITERATIONS", "SLIDE_SCALE", "STEP",
            "foot_loss", "make_foot_refiner"]
 
 #: A foot joint this far (m) above its flat-foot height is half "near the floor".
@@ -51,6 +52,11 @@ STEP = 1.0
 #: (a positive semi-definite kernel: still a descent direction), so that the correction is
 #: as smooth as the motion; a raw per-frame step leaves a frame-to-frame zigzag (jerk).
 SMOOTHING = 2.0
+#: The samplers apply it at the reverse steps whose noise level is under this fraction of the
+#: schedule's steps (the late steps, where the body's pose is being settled: 6 of DDIM-20's
+#: 20, for the cost of 6 rather than 20; see ``docs/results.md``, "Foot guidance on the late
+#: steps only").
+ACTIVE_FRACTION = 0.3
 
 _LIE = ACTION_CLASSES.index("lie")
 
@@ -77,13 +83,16 @@ def foot_loss(features, betas, mask, action, floor_weight: float = 1.0):
 
 
 def make_foot_refiner(betas, mask, action, mean, std, strength: float = 1.0, *,
-                      iterations: int = ITERATIONS, step: float = STEP):
-    """A ``refine_fn(x0_hat [1, T, D], t) -> x0_hat`` for the completion sampler.
+                      iterations: int = ITERATIONS, step: float = STEP,
+                      active_below: int | None = None):
+    """A ``refine_fn(x0_hat [1, T, D], t [1]) -> x0_hat`` for the completion sampler.
 
     ``mean``, ``std``: the completion model's feature statistics (``x0_hat`` is
     normalised); ``strength`` in [0, 1] scales the step (0 = off); ``iterations``
-    gradient steps of size ``step`` at every reverse step. Only the body's rotations move
-    (features after :data:`TRAJECTORY_DIM`)."""
+    gradient steps of size ``step`` at each reverse step whose noise level ``t`` is below
+    ``active_below`` (None: at every step; the earlier steps return ``x0_hat`` unchanged
+    and cost nothing, ``t`` must not be batched under ``vmap``, as a sampler's is not).
+    Only the body's rotations move (features after :data:`TRAJECTORY_DIM`)."""
     betas = None if betas is None else jnp.asarray(betas, jnp.float32)
     scale = jnp.float32(step * strength)
     body = (jnp.arange(mean.shape[-1]) >= TRAJECTORY_DIM).astype(jnp.float32)
@@ -100,10 +109,13 @@ def make_foot_refiner(betas, mask, action, mean, std, strength: float = 1.0, *,
         return jax.vmap(lambda c: jnp.convolve(c, kernel, mode="same"), in_axes=1,
                         out_axes=1)(g)
 
-    def refine(x0, t):
+    def guided(x0):
         def one(_, x):
             return x - scale * body * smooth(grad(x))
 
         return jax.lax.fori_loop(0, int(iterations), one, x0[0])[None]
 
-    return refine
+    if active_below is None:
+        return lambda x0, t: guided(x0)
+    return lambda x0, t: jax.lax.cond(jnp.reshape(t, (-1,))[0] < active_below, guided,
+                                      lambda x: x, x0)

@@ -35,7 +35,7 @@ import jax.numpy as jnp
 
 from jaxmotion.constants import ACTION_CLASSES, SCENE_FPS, UNKNOWN_ACTION
 from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
-from jaxmotion.diffusion.foot_guidance import make_foot_refiner
+from jaxmotion.diffusion import foot_guidance as foot_module
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.rotations import matrix_to_rotation_6d
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
@@ -268,8 +268,10 @@ class ObjectCentricPipeline:
             values = norm if values is None else jnp.where(given, norm, values)
         refine = None
         if foot_guidance:
-            feet = make_foot_refiner(betas, base["mask"][0], base["action"][0], c_mean, c_std,
-                                     foot_guidance)
+            late = round(foot_module.ACTIVE_FRACTION * self.comp_schedule.num_steps)
+            feet = foot_module.make_foot_refiner(betas, base["mask"][0], base["action"][0],
+                                                 c_mean, c_std, foot_guidance,
+                                                 active_below=late)
             # the feet are planted under the root that will be kept: the known values first
             refine = feet if known is None else (lambda x, t: feet(jnp.where(known, values, x),
                                                                    t))

@@ -135,7 +135,7 @@ def _convert_humanise(args: argparse.Namespace) -> int:
               "--fps": args.fps is not None,
               "--fit-iters": args.fit_iters != 200, "--keep-height": args.keep_height,
               "--up / --unit / --joint-map": (args.up, args.unit, args.joint_map) != (
-                  "y", "auto", "auto")}
+                  "auto", "auto", "auto")}
     if given := [k for k, v in others.items() if v]:
         raise ValueError(f"{', '.join(given)} do not apply to HUMANISE (it has its own actions, "
                          "texts, SMPL-X parameters and heights)")

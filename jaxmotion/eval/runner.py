@@ -53,6 +53,7 @@ replications ± the 95 % interval ``1.96 σ / √R`` (the HumanML3D convention).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import time
@@ -612,6 +613,14 @@ def evaluate(
 
             objects = ObjectCentricPipeline.from_files(weights_path(spec.trajectory),
                                                        weights_path(spec.completion))
+            # one compiled program for every batch (called eagerly, each batch compiled its
+            # samplers' scans again, and the kept executables' memory maps piled up until
+            # the system's limit stopped a long evaluation)
+            object_sample = jax.jit(functools.partial(
+                objects.sample, trajectory=amdm_sampler, completion=amdm_sampler,
+                motion_candidates=spec.motion_candidates, keep_trajectory=spec.keep_trajectory,
+                anchor_guidance=spec.anchor, standing_guidance=spec.standing,
+                foot_guidance=spec.feet))
         cvae = None
         if spec.cvae is not None:
             cvae = _cvae_sampler(spec, cases, encoder)
@@ -649,14 +658,10 @@ def evaluate(
                     avoid = np.stack([furniture_mask(cases[i]["points"], t,
                                                      target_too=keeps_out_of_target(a))
                                       for i, t, a in zip(idx, target, acts)])
-                    res = jax.device_get(objects.sample(
+                    res = jax.device_get(object_sample(
                         jax.random.fold_in(key, start), x["points"], x["normals"], target,
                         pooled_text(take_text(emb, idx)), x["betas"], x["mask"],
-                        trajectory=amdm_sampler, completion=amdm_sampler,
-                        motion_candidates=spec.motion_candidates,
                         anchor_first=np.array([anchor_is_first(cases[i]["text"]) for i in idx]),
-                        keep_trajectory=spec.keep_trajectory, anchor_guidance=spec.anchor,
-                        standing_guidance=spec.standing, foot_guidance=spec.feet,
                         action=np.array([action_index(a) for a in acts]), avoid=avoid))
                 elif cvae is not None:
                     res = {"joints": cvae(jax.random.fold_in(key, start), x, idx)}

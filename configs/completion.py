@@ -10,8 +10,9 @@ the L1 loss, as the paper. ``joint_weight``, ``foot_contact_weight`` and
 (joint positions, MDM's foot contact, joint velocities; 0 by default); the shipped model was
 fine-tuned with 200 / 3 / 2 (docs/results.md, "The completion model's legs").
 ``model.traj_velocity=true`` gives each frame's trajectory token the root's motion in the
-body's heading frame as well (where a walk's steps show; with ``init_from`` a model without
-it grows the input at zero weight), and ``geometric_weighting=uniform`` asks the geometric
+body's heading frame as well (where a walk's steps show). With ``init_from`` a model without
+the velocity or the trajectory sensor grows the switched-on inputs at zero weight (it starts
+as the same function), and ``geometric_weighting=uniform`` asks the geometric
 terms of every diffusion step, not only the nearly clean ones.
 
     python -m jaxmotion.train --config configs/completion.py data_dir=data/synth \

@@ -449,9 +449,9 @@ def test_generate_with_the_object_centric_pipeline(runs, tmp_path):
 
 
 def test_generate_loads_the_kept_sampler_while_it_grounds(runs, tmp_path, monkeypatch):
-    """A repeated generate starts loading the object-centric program it kept on disk before
-    the target is found (the program's shapes are the options'), and the sampling takes that
-    program: nothing prefetched is left over, and the motions are those of the first run."""
+    """A repeated generate starts loading the object-centric programs it kept on disk before
+    the target is found (the programs' shapes are the options'), and the sampling takes those
+    programs: nothing prefetched is left over, and the motions are those of the first run."""
     import jaxmotion.compiled as C
     from jaxmotion import generate
 
@@ -465,8 +465,11 @@ def test_generate_loads_the_kept_sampler_while_it_grounds(runs, tmp_path, monkey
     first = generate("demo", "sit on the chair next to the table", **kw)
     C.release()  # as a new process
     again = generate("demo", "sit on the chair next to the table", **kw)
-    sampler = [ok for name, ok in started if name == "sample-object-centric"]
-    assert sampler == [False, True] and C.prefetched() == ()
+    from jaxmotion.pipelines.object_centric import PROGRAMS
+
+    for program in PROGRAMS:  # the two stages' programs, each loading on its own thread
+        assert [ok for name, ok in started if name == program] == [False, True], program
+    assert C.prefetched() == ()
     np.testing.assert_array_equal(again.joints, first.joints)
 
 

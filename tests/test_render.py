@@ -385,6 +385,31 @@ def test_video_and_still_files(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.mp4", "m.png"]
 
 
+@pytest.mark.parametrize("suffix", [".mp4", ".gif"])
+def test_video_runs_work_beside_it_and_raises_its_error(tmp_path, suffix):
+    """``meanwhile`` runs on another thread while the frames are drawn (generate writes its
+    other files so); the video is the same, and an error there is raised with no video left."""
+    import threading
+
+    from jaxmotion.render import render_video
+
+    clip = _clip(size=(64, 48), t=6)
+    plain = render_video(tmp_path / f"a{suffix}", clip, video_fps=15).read_bytes()
+    ran = []
+    render_video(tmp_path / f"b{suffix}", clip, video_fps=15,
+                 meanwhile=lambda: ran.append(threading.current_thread().name))
+    assert ran and ran[0] != threading.current_thread().name
+    assert (tmp_path / f"b{suffix}").read_bytes() == plain
+
+    def fails():
+        raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        render_video(tmp_path / f"c{suffix}", clip, video_fps=15, meanwhile=fails)
+    assert not (tmp_path / f"c{suffix}").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"a{suffix}", f"b{suffix}"]
+
+
 # --------------------------------------------------------------------------- command line
 
 

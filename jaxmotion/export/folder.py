@@ -23,16 +23,18 @@ from jaxmotion.export._common import random_subset
 __all__ = ["check_output_folder", "scene_heat", "summary", "write_generation"]
 
 
-def write_generation(res, out, *, video: str | None = "mp4", bvh_sample: int = 0) -> dict[str, Path]:
+def write_generation(res, out, *, video: str | None = "mp4",
+                     bvh_sample: int = 0) -> dict[str, Path]:
     """Write the outputs into folder ``out`` (created); returns ``{name: path}``.
 
     ``motion.npz`` (every field), ``motion.bvh`` and ``motion_smplx.npz`` (sample
     ``bvh_sample``; the second an AMASS-style SMPL-X file, :func:`jaxmotion.export.
-    write_amass_npz`), ``motion.glb``
-    (skinned mannequins with the room), ``motion.mp4`` / ``motion.gif`` (``video="mp4"|"gif"``,
-    None to skip: the shaded mannequins in the lit room, 640×480 at 15 frames per second,
-    :func:`jaxmotion.render.results.render_generation`) and ``viewer.html``. Files are built in a temporary folder and moved in
-    at the end, so an error leaves no half-written output.
+    write_amass_npz`), ``motion.glb`` (skinned mannequins with the room), ``motion.mp4`` /
+    ``motion.gif`` (``video="mp4"|"gif"``, None to skip: the shaded mannequins in the lit
+    room, 640×480 at 15 frames per second, :func:`jaxmotion.render.results.
+    render_generation`; the other files are written while it draws) and ``viewer.html``.
+    Files are built in a temporary folder and moved in at the end, so an error leaves no
+    half-written output.
     """
     if video not in (None, "gif", "mp4"):
         raise GenerateError(f"video must be 'gif', 'mp4' or None, got {video!r}")
@@ -94,32 +96,37 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
     llm = getattr(res.understanding, "llm", None)
     if llm is not None:  # --grounding llm: the prompts and answers that chose the target
         (tmp / "grounding_llm.json").write_text(json.dumps(llm, indent=1))
-    p = res.smplx
-    i = int(bvh_sample)
-    export.write_bvh(tmp / "motion.bvh", p["global_orient"][i], p["body_pose"][i],
-                     p["transl"][i], p["betas"][i], res.fps)
-    export.write_amass_npz(tmp / "motion_smplx.npz", p["global_orient"][i], p["body_pose"][i],
-                           p["transl"][i], p["betas"][i], res.fps)
-    keep = random_subset(res.scene.num_points, 60_000, res.seed)
-    xyz, rgb = res.scene.xyz[keep], res.scene.rgb[keep]
-    export.write_glb(tmp / "motion.glb", global_orient=p["global_orient"],
-                     body_pose=p["body_pose"], transl=p["transl"], betas=p["betas"],
-                     fps=res.fps, scene_xyz=xyz, scene_rgb=rgb)
-    heat = scene_heat(res, xyz)
-    if video:  # the fitted mannequins in the room (jaxmotion.render)
+    def others():  # the files beside the video, written while its room picture is drawn
+        p = res.smplx
+        i = int(bvh_sample)
+        export.write_bvh(tmp / "motion.bvh", p["global_orient"][i], p["body_pose"][i],
+                         p["transl"][i], p["betas"][i], res.fps)
+        export.write_amass_npz(tmp / "motion_smplx.npz", p["global_orient"][i],
+                               p["body_pose"][i], p["transl"][i], p["betas"][i], res.fps)
+        keep = random_subset(res.scene.num_points, 60_000, res.seed)
+        xyz, rgb = res.scene.xyz[keep], res.scene.rgb[keep]
+        export.write_glb(tmp / "motion.glb", global_orient=p["global_orient"],
+                         body_pose=p["body_pose"], transl=p["transl"], betas=p["betas"],
+                         fps=res.fps, scene_xyz=xyz, scene_rgb=rgb)
+        heat = scene_heat(res, xyz)
+        cats = {int(o["id"]): o["category"] for o in res.scene.objects}
+        steps = [{**g, "label": g["action"].replace("_", " ") + (
+            f" · {cats.get(int(g['object']), 'object')} {g['object']}" if int(g["object"]) >= 0
+            else "")} for g in res.segments]
+        export.write_viewer_html(tmp / "viewer.html", scene_xyz=xyz, scene_rgb=rgb,
+                                 joints=res.joints, fps=res.fps, text=res.text,
+                                 affordance=heat if np.any(heat) else None, smplx=p,
+                                 scene_normal=res.scene.normal[keep],
+                                 scene_instance=res.scene.instance[keep],
+                                 objects=res.scene.objects, target_id=res.target_id,
+                                 segments=steps, paths=res.paths)
+
+    if video:  # the fitted mannequins in the room (jaxmotion.render), the others beside it
         from jaxmotion.render.results import render_generation
 
-        render_generation(res, tmp / f"motion.{video}")
-    cats = {int(o["id"]): o["category"] for o in res.scene.objects}
-    steps = [{**g, "label": g["action"].replace("_", " ") + (
-        f" · {cats.get(int(g['object']), 'object')} {g['object']}" if int(g["object"]) >= 0
-        else "")} for g in res.segments]
-    export.write_viewer_html(tmp / "viewer.html", scene_xyz=xyz, scene_rgb=rgb,
-                             joints=res.joints, fps=res.fps, text=res.text,
-                             affordance=heat if np.any(heat) else None, smplx=p,
-                             scene_normal=res.scene.normal[keep],
-                             scene_instance=res.scene.instance[keep], objects=res.scene.objects,
-                             target_id=res.target_id, segments=steps, paths=res.paths)
+        render_generation(res, tmp / f"motion.{video}", meanwhile=others)
+    else:
+        others()
 
 
 def check_output_folder(out) -> Path:

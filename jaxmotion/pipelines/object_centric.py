@@ -204,6 +204,16 @@ class ObjectCentricPipeline:
         """
         k_traj, k_comp = jax.random.split(key)
         base, null = self._conditions(points, normals, target_mask, text, betas, mask, action)
+        traj = self._trajectory(k_traj, base, null, points, normals, target_mask, betas, mask,
+                                trajectory_spec, anchor_guidance, standing_guidance, prefix,
+                                prefix_frames)
+        return self._complete(k_comp, base, null, points, normals, traj, betas, completion_spec,
+                              keep_trajectory, prefix, prefix_frames, foot_guidance,
+                              traj_sensor_on)
+
+    def _trajectory(self, key, base, null, points, normals, target_mask, betas, mask, spec,
+                    anchor_guidance, standing_guidance, prefix, prefix_frames):
+        """Stage 1: the root trajectory ``[T, 9]`` (metres, crop frame)."""
         t_mean, t_std = self.traj_stats
         nt = mask.shape[0]
 
@@ -223,12 +233,9 @@ class ObjectCentricPipeline:
             values = ((prefix[:, :TRAJECTORY_DIM] - t_mean) / t_std)[None]
             join = make_join_refiner(values[0], prefix_frames, t_mean, t_std)
             refine = join if refine is None else (lambda x, t, a=refine: a(join(x, t), t))
-        x = trajectory_spec.run(k_traj, traj_denoise, self.traj_schedule, shape, base,
-                                {**base, **null}, refine, known_mask=known, known_values=values)
-        traj = x[0] * t_std + t_mean
-        return self._complete(k_comp, base, null, points, normals, traj, betas, completion_spec,
-                              keep_trajectory, prefix, prefix_frames, foot_guidance,
-                              traj_sensor_on)
+        x = spec.run(key, traj_denoise, self.traj_schedule, shape, base, {**base, **null},
+                     refine, known_mask=known, known_values=values)
+        return x[0] * t_std + t_mean
 
     def complete_one(self, key, points, normals, target_mask, text, betas, trajectory, mask, *,
                      spec: SamplerSpec = DEFAULT_SPEC, action=None, prefix=None,
@@ -312,7 +319,9 @@ class ObjectCentricPipeline:
                anchor_guidance: float = 1.0, standing_guidance: float = 1.0,
                foot_guidance: float = 1.0, avoid=None,
                traj_sensor_on: str = "trajectory") -> dict:
-        """Motions for a batch of crops, the best of ``motion_candidates`` each.
+        """Motions for a batch of crops, the best of ``motion_candidates`` each: the two stages
+        :meth:`sample_trajectories` then :meth:`complete_trajectories` (one program, or two
+        that load side by side as ``generate``'s do; the same motions).
 
         Args:
           key: PRNG key; points, normals ``[B, N, 3]``; target ``[B, N]`` bool (the target
@@ -331,31 +340,73 @@ class ObjectCentricPipeline:
           ``{"joints": [B, T, 22, 3], "motion": [B, T, 135]}`` (the kept candidates' joints
           and motion features) in the crop frame.
         """
-        from jaxmotion.pipelines.affordance import select_motion
+        trajs = self.sample_trajectories(key, points, normals, target, text_emb, betas, mask,
+                                         trajectory=trajectory,
+                                         motion_candidates=motion_candidates, action=action,
+                                         anchor_guidance=anchor_guidance,
+                                         standing_guidance=standing_guidance)
+        return self.complete_trajectories(key, points, normals, target, text_emb, betas, mask,
+                                          trajs, completion=completion,
+                                          anchor_first=anchor_first,
+                                          keep_trajectory=keep_trajectory, action=action,
+                                          foot_guidance=foot_guidance, avoid=avoid,
+                                          traj_sensor_on=traj_sensor_on)
 
-        b, m = points.shape[0], int(motion_candidates)
-        keys = jax.random.split(key, b * m).reshape(b, m)
-
-        if action is None:
-            action = jnp.full((b,), UNKNOWN_ACTION, jnp.int32)
+    def sample_trajectories(self, key, points, normals, target, text_emb, betas, mask, *,
+                            trajectory: SamplerSpec = DEFAULT_SPEC, motion_candidates: int = 1,
+                            action=None, anchor_guidance: float = 1.0,
+                            standing_guidance: float = 1.0):
+        """Stage 1 of :meth:`sample`: the root trajectories ``[B, M, T, 9]`` (metres, crop
+        frame) of each crop's ``M = motion_candidates`` candidates; arguments as there."""
+        keys, action = self._candidate_keys(key, points.shape[0], motion_candidates, action)
 
         def one(k, p, n, t, e, bt, mk, a):
-            out = self.sample_one(k, p, n, t, e, bt, mk, trajectory_spec=trajectory,
-                                  completion_spec=completion, keep_trajectory=keep_trajectory,
-                                  action=a, anchor_guidance=anchor_guidance,
-                                  standing_guidance=standing_guidance,
-                                  foot_guidance=foot_guidance, traj_sensor_on=traj_sensor_on)
-            return out["joints"], out["motion"]
+            base, null = self._conditions(p, n, t, e, bt, mk, a)
+            return self._trajectory(jax.random.split(k)[0], base, null, p, n, t, bt, mk,
+                                    trajectory, anchor_guidance, standing_guidance, None, None)
 
         per_candidate = jax.vmap(one, in_axes=(0, None, None, None, None, None, None, None))
-        joints, motion = jax.vmap(per_candidate)(keys, points, normals, target, text_emb, betas,
-                                                 mask, jnp.asarray(action, jnp.int32))
+        return jax.vmap(per_candidate)(keys, points, normals, target, text_emb, betas, mask,
+                                       action)
+
+    def complete_trajectories(self, key, points, normals, target, text_emb, betas, mask,
+                              trajectories, *, completion: SamplerSpec = DEFAULT_SPEC,
+                              anchor_first=None, keep_trajectory: bool = True, action=None,
+                              foot_guidance: float = 1.0, avoid=None,
+                              traj_sensor_on: str = "trajectory") -> dict:
+        """Stage 2 of :meth:`sample`: the motions along ``trajectories [B, M, T, 9]`` (from
+        :meth:`sample_trajectories` with the same ``key``), the best of the M kept; arguments
+        and result as :meth:`sample`."""
+        from jaxmotion.pipelines.affordance import select_motion
+
+        b, m = trajectories.shape[:2]
+        keys, action = self._candidate_keys(key, b, m, action)
+
+        def one(k, tr, p, n, t, e, bt, mk, a):
+            base, null = self._conditions(p, n, t, e, bt, mk, a)
+            out = self._complete(jax.random.split(k)[1], base, null, p, n, tr, bt, completion,
+                                 keep_trajectory, None, None, foot_guidance, traj_sensor_on)
+            return out["joints"], out["motion"]
+
+        per_candidate = jax.vmap(one, in_axes=(0, 0, None, None, None, None, None, None, None))
+        joints, motion = jax.vmap(per_candidate)(keys, jnp.asarray(trajectories, jnp.float32),
+                                                 points, normals, target, text_emb, betas, mask,
+                                                 action)
         if m == 1:
             return {"joints": joints[:, 0], "motion": motion[:, 0]}
         best = select_motion(joints, points, target, mask, anchor_first,
                              brisk_pelvis_speed=BRISK_PELVIS_SPEED, avoid=avoid, feet=True,
                              return_index=True)
         return {"joints": joints[jnp.arange(b), best], "motion": motion[jnp.arange(b), best]}
+
+    @staticmethod
+    def _candidate_keys(key, b: int, m: int, action):
+        """Each candidate's key ``[B, M]`` (split again into its two stages' keys, as
+        :meth:`sample_one` does) and the actions ``[B]``."""
+        keys = jax.random.split(key, b * int(m)).reshape(b, int(m))
+        if action is None:
+            action = jnp.full((b,), UNKNOWN_ACTION, jnp.int32)
+        return keys, jnp.asarray(action, jnp.int32)
 
 
 def furniture_mask(points, target_mask, *, target_too: bool = False):
@@ -422,7 +473,7 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     from jaxmotion.errors import GenerateError
     from jaxmotion.text.condition import pooled_text
 
-    spec, frames, fingerprint, build = _sampler_program(opts, files, versions)
+    spec, frames, fingerprint, builds = _sampler_program(opts, files, versions)
     pick, pts, shift, rot = generate_crop(room.xyz, centre, spec, opts.seed)
     on_target = room.instance[pick] == chosen
     if not on_target.any():
@@ -433,7 +484,10 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     args = _sampler_arguments(opts.samples, frames, root, pts, normals, on_target,
                               np.asarray(pooled_text(text_emb), np.float32)[0], anchor_first,
                               action, avoid, rot, shift)
-    res = jax.device_get(cached_call(aot_dir, "sample-object-centric", fingerprint, build, args))
+    # two programs, the stages, so that their executables load side by side (prefetch_sampler)
+    trajs = cached_call(aot_dir, PROGRAMS[0], fingerprint, builds[0], _stage_arguments(args))
+    res = jax.device_get(cached_call(aot_dir, PROGRAMS[1], fingerprint, builds[1],
+                                     _stage_arguments(args, trajs)))
     joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
     smplx = {n: np.asarray(res[n], np.float32) for n in ("global_orient", "body_pose", "transl")}
     smplx["betas"] = args[5]
@@ -441,10 +495,12 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
 
 
 def prefetch_sampler(opts, files, root, aot_dir, versions) -> bool:
-    """Start loading :func:`sample_in_room`'s compiled program in the background
-    (:func:`jaxmotion.compiled.prefetch`), before the target is found: the program's shapes
-    depend on the options and the models only. Returns whether it started (the program is
-    on disk)."""
+    """Start loading :func:`sample_in_room`'s two compiled programs (its stages) in the
+    background, each on its own thread (:func:`jaxmotion.compiled.prefetch`), before the
+    target is found: the programs' shapes depend on the options and the models only. An
+    executable loads on one core (measured: two load side by side in the time of one), so
+    the stages' two load in about the time of the larger. Returns whether both started (the
+    programs are on disk)."""
     import numpy as np
 
     from jaxmotion.compiled import prefetch, specs_of
@@ -457,7 +513,10 @@ def prefetch_sampler(opts, files, root, aot_dir, versions) -> bool:
     text = np.zeros(int(_denoiser_config(files[1])["text_dim"]), np.float32)
     args = _sampler_arguments(opts.samples, frames, root, xyz, xyz, flags, text, False, None,
                               flags, np.eye(3, dtype=np.float32), np.zeros(3, np.float32))
-    return prefetch(aot_dir, "sample-object-centric", fingerprint, specs_of(args))
+    trajs = np.zeros((opts.samples, opts.motion_candidates, frames, TRAJECTORY_DIM), np.float32)
+    started = [prefetch(aot_dir, name, fingerprint, specs_of(stage_args)) for name, stage_args
+               in zip(PROGRAMS, (_stage_arguments(args), _stage_arguments(args, trajs)))]
+    return all(started)
 
 
 def _denoiser_config(path) -> dict:
@@ -466,9 +525,16 @@ def _denoiser_config(path) -> dict:
     return read_config(path)["model"]
 
 
+#: The names of :func:`sample_in_room`'s two compiled programs in the cache: the trajectory
+#: stage (every candidate's root) and the completion stage (the bodies, the best candidate,
+#: its SMPL-X parameters in the scene frame).
+PROGRAMS = ("sample-object-centric-trajectory", "sample-object-centric-completion")
+
+
 def _sampler_program(opts, files, versions):
-    """``(crop spec, frames, fingerprint, build)`` of :func:`sample_in_room`'s compiled program
-    for ``opts`` and the weights ``files``."""
+    """``(crop spec, frames, fingerprint, (build_trajectory, build_completion))`` of
+    :func:`sample_in_room`'s two compiled programs for ``opts`` and the weights ``files``
+    (their arguments: :func:`_stage_arguments`)."""
     from jaxmotion.compiled import digest
     from jaxmotion.data.crop import crop_spec_from_config
     from jaxmotion.models.weights import read_config
@@ -478,13 +544,24 @@ def _sampler_program(opts, files, versions):
     stage = SamplerSpec("ddim", opts.steps, guidance=opts.guidance[1])
     n_mot = opts.motion_candidates
 
-    def build():
-        pipe = load_object_pipeline(str(files[0]), str(files[1]))
-        main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]
+    main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]  # noqa: E731
 
-        def run(kd, p, n, t, e, b, m, f, a, av, rot, shift):
-            res = pipe.sample(main(kd), p, n, t, e, b, m, trajectory=stage, completion=stage,
-                              motion_candidates=n_mot, anchor_first=f, action=a, avoid=av)
+    def build_trajectory():
+        pipe = load_object_pipeline(str(files[0]), str(files[1]))
+
+        def run(kd, p, n, t, e, b, m, a):
+            return pipe.sample_trajectories(main(kd), p, n, t, e, b, m, trajectory=stage,
+                                            motion_candidates=n_mot, action=a)
+
+        return run
+
+    def build_completion():
+        pipe = load_object_pipeline(str(files[0]), str(files[1]))
+
+        def run(kd, p, n, t, e, b, m, f, a, av, rot, shift, trajs):
+            res = pipe.complete_trajectories(main(kd), p, n, t, e, b, m, trajs,
+                                             completion=stage, anchor_first=f, action=a,
+                                             avoid=av)
             # the features in the scene frame (x_scene = x_crop @ rot + shift): SMPL-X's
             motion = res["motion"]
             turned = rot.T @ trajectory_frames(motion)[1]
@@ -496,7 +573,15 @@ def _sampler_program(opts, files, versions):
         return run
 
     fingerprint = digest(versions, stage, n_mot, Path(files[0]), Path(files[1]))
-    return spec, frames, fingerprint, build
+    return spec, frames, fingerprint, (build_trajectory, build_completion)
+
+
+def _stage_arguments(args, trajectories=None):
+    """The trajectory program's arguments of :func:`_sampler_arguments`' ``args``; with
+    ``trajectories [K, M, T, 9]`` (what it returned), the completion program's."""
+    if trajectories is None:
+        return (*args[:7], args[8])
+    return (*args, trajectories)
 
 
 def _sampler_arguments(k: int, frames: int, root, pts, normals, on_target, text, anchor_first,

@@ -23,6 +23,8 @@ PNG (optionally with faint "ghost" bodies at earlier frames).
 
 from __future__ import annotations
 
+import contextlib
+
 import math
 import os
 import tempfile
@@ -367,11 +369,14 @@ def drawn_frames(clip: Clip, frames, workers: int | None = None):
 
 
 def render_video(path, clip: Clip, *, video_fps: float | None = None,
-                 max_frames: int | None = None) -> Path:
+                 max_frames: int | None = None, meanwhile=None) -> Path:
     """Write ``clip`` to ``.mp4`` (H.264, streamed to ffmpeg) or ``.gif``, atomically.
 
     Frames are drawn at a whole stride of the motion's: ``video_fps`` (None: every frame),
     also at most ``max_frames`` frames; the clip keeps the motion's duration.
+    ``meanwhile``: a function run on another thread while the frames are drawn (from after
+    ffmpeg has started: no thread may be busy when it forks); its exception is raised here.
+    ``generate`` writes its other files so while the room picture is drawn, on one core.
     """
     from jaxmotion.export.video import GIF_MAX_FPS, gif_bytes
 
@@ -386,7 +391,8 @@ def render_video(path, clip: Clip, *, video_fps: float | None = None,
         video_fps = min(video_fps or clip.fps, GIF_MAX_FPS)
     frames, out_fps = _frame_indices(clip.bodies.num_frames, clip.fps, video_fps, max_frames)
     if suffix == ".gif":
-        images = list(drawn_frames(clip, frames))
+        with _beside(meanwhile):
+            images = list(drawn_frames(clip, frames))
         box = (0, 0, clip.width, clip.height)
         data = gif_bytes(images, [box] * len(images), images[0], out_fps,
                           [(255, 255, 255), (20, 20, 20)])
@@ -410,8 +416,9 @@ def render_video(path, clip: Clip, *, video_fps: float | None = None,
             warnings.filterwarnings("ignore", message="os.fork", category=RuntimeWarning)
             writer.send(None)
         try:
-            for image in drawn_frames(clip, frames):
-                writer.send(np.ascontiguousarray(image))
+            with _beside(meanwhile):
+                for image in drawn_frames(clip, frames):
+                    writer.send(np.ascontiguousarray(image))
         finally:
             writer.close()
         umask = os.umask(0)
@@ -422,6 +429,33 @@ def render_video(path, clip: Clip, *, video_fps: float | None = None,
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+@contextlib.contextmanager
+def _beside(fn):
+    """Run ``fn`` on another thread for the duration of the block; wait for it at the end and
+    raise its exception (after the block's own, which wins)."""
+    if fn is None:
+        yield
+        return
+    import threading
+
+    error: list[BaseException] = []
+
+    def run():
+        try:
+            fn()
+        except BaseException as e:  # noqa: BLE001 - raised on the caller's thread below
+            error.append(e)
+
+    thread = threading.Thread(target=run, name="beside the video", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        thread.join()
+    if error:
+        raise error[0]
 
 
 def render_still(path_png, clip: Clip, *, frame: int | None = None, ghosts: int = 0) -> Path:

@@ -72,13 +72,14 @@ def clip_for_motion(scene, smplx: dict, joints, fps: float, *, text: str = "",
 
 
 def render_generation(res, path, *, size=(640, 480), video_fps: float | None = GENERATE_VIDEO_FPS,
-                      samples: str = "overlay", camera: str = "auto") -> Path:
+                      samples: str = "overlay", camera: str = "auto", meanwhile=None) -> Path:
     """Write ``res``'s video (``.mp4`` or ``.gif``): the fitted mannequins in the room, the
-    target highlighted, the text as caption, at ``video_fps`` frames per second."""
+    target highlighted, the text as caption, at ``video_fps`` frames per second;
+    ``meanwhile`` runs on another thread while the frames are drawn (:func:`render_video`)."""
     clip = clip_for_motion(res.scene, res.smplx, res.joints, res.fps, text=res.text,
                            target_id=res.target_id, mask=res.mask, seed=res.seed, size=size,
                            samples=samples, camera=camera)
-    return render_video(path, clip, video_fps=video_fps)
+    return render_video(path, clip, video_fps=video_fps, meanwhile=meanwhile)
 
 
 def load_motion(path) -> SavedMotion:

@@ -53,7 +53,9 @@ def _brute_loss(features, betas, mask, action):
             if mask[t]:
                 low = -F.CONTACT_SOFTNESS * np.log(np.sum(np.exp(-h[t] / F.CONTACT_SOFTNESS)))
                 floor += (low / F.FLOOR_SCALE) ** 2
-    return slide + floor / max(mask.sum(), 1)
+    sink = sum(max(-h[t, f] - F.SINK_TOLERANCE, 0.0) ** 2 for t in range(len(j)) if mask[t]
+               for f in range(feet.shape[1])) / F.FLOOR_SCALE ** 2 / F.SINK_FRAMES
+    return slide + floor / max(mask.sum(), 1) + sink
 
 
 @pytest.mark.parametrize("action", [SIT, LIE])
@@ -115,6 +117,50 @@ def test_refiner_plants_sliding_feet_and_moves_only_the_body():
     np.testing.assert_allclose(np.asarray(batched[0]), once[0], atol=1e-4)
 
 
+def _perched_motion(t=30, sunk=0.08, seed=0):
+    """A seated body (hips and knees bent 80°, shins down) whose feet are ``sunk`` metres in
+    the floor: a seat too high for its legs, the pelvis held there by the kept root."""
+    rng = np.random.default_rng(seed)
+    c, s = np.cos(1.4), np.sin(1.4)
+    bend = lambda a: np.array([[1, 0, 0], [0, c, -a * s], [0, a * s, c]], np.float32)  # noqa
+    rots = np.tile(np.eye(3, dtype=np.float32), (21, 1, 1))
+    rots[0] = rots[1] = bend(-1.0)  # hips: thighs forward
+    rots[3] = rots[4] = bend(1.0)  # knees: shins down
+    f = np.zeros((t, MOTION_DIM), np.float32)
+    f[:, 3:9] = np.asarray(matrix_to_rotation_6d(upright_orientation(0.0)))
+    f[:, TRAJECTORY_DIM:] = (np.asarray(matrix_to_rotation_6d(jnp.asarray(rots))).reshape(-1)
+                             + rng.normal(0, 0.01, (t, 21 * 6)))
+    low = np.min(np.asarray(motion_to_joints(jnp.asarray(f), None))[:, list(FOOT_JOINTS), 2]
+                 - np.asarray(FOOT_FLOOR_OFFSETS))
+    f[:, 2] = -low - sunk
+    return f
+
+
+@pytest.mark.parametrize("action", [SIT, LIE])
+def test_feet_in_the_floor_are_lifted_in_every_action(action, monkeypatch):
+    """The sink term: a perched body whose feet are 8 cm in the floor bends its legs until
+    they are (nearly) out, whatever the action; feet above the floor give it nothing."""
+    sunk = _perched_motion()
+    mask = jnp.ones(len(sunk), bool)
+    feet = lambda x: np.asarray(motion_to_joints(jnp.asarray(x), None))[:, list(FOOT_JOINTS), 2]
+    under = lambda x: float(np.min(feet(x) - np.asarray(FOOT_FLOOR_OFFSETS)))
+    assert under(sunk) < -0.075
+    mean, std = jnp.zeros(MOTION_DIM), jnp.full(MOTION_DIM, STD)
+    refine = F.make_foot_refiner(None, mask, action, mean, std, iterations=20)
+    x = ((jnp.asarray(sunk) - mean) / std)[None]
+    y = refine(x, jnp.zeros(1))
+    np.testing.assert_array_equal(np.asarray(y)[..., :TRAJECTORY_DIM],
+                                  np.asarray(x)[..., :TRAJECTORY_DIM])  # the root is kept
+    out = np.asarray(y[0]) * STD
+    assert under(out) > -0.025, under(out)
+    up = sunk.copy()
+    up[:, 2] += 0.1  # every foot above the floor: the sink term adds exactly nothing
+    grad = lambda: jax.grad(lambda x: F.foot_loss(x, None, mask, action))(jnp.asarray(up))
+    with_sink = np.asarray(grad())
+    monkeypatch.setattr(F, "SINK_FRAMES", np.inf)
+    np.testing.assert_array_equal(with_sink, np.asarray(grad()))
+
+
 def test_a_lying_body_is_not_pulled_to_the_floor():
     f = _seated_motion()
     f[:, 0] = 0.0
@@ -127,6 +173,7 @@ def test_a_lying_body_is_not_pulled_to_the_floor():
 def test_skating_of_the_planted_motion_is_lower():
     f = _seated_motion()
     f[:, 0] = np.linspace(0.0, 0.6, len(f))  # 0.45 m/s: near the skating threshold
+    f[:, 2] += 0.02  # its feet on the floor, not in it (the sink term: the test above)
     mask = jnp.ones(len(f), bool)
     zeros, std = np.zeros(MOTION_DIM, np.float32), np.full(MOTION_DIM, STD, np.float32)
     refine = jax.jit(F.make_foot_refiner(None, mask, SIT, zeros, std))

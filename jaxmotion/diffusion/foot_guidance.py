@@ -17,6 +17,12 @@ body's joint rotations lower
 - **floor**: the height of the lowest foot joint above (or under) its flat-foot height,
   in units of 5 cm, in every frame of every action but lie (a lying body's feet rest on
   the bed);
+- **sink**: how far each foot joint is more than :data:`SINK_TOLERANCE` under its
+  flat-foot height, in units of 5 cm, squared and summed over the frames (divided by
+  :data:`SINK_FRAMES`, not by the motion's length), in every action: a body perched on a
+  seat too high for its legs had its toes 7–12 cm in the floor for 20 frames, and the
+  floor term, a mean over the motion's frames, moved them 2 cm. Feet above the floor give
+  it exactly nothing (``docs/results.md``, "Feet out of the floor: the sink term");
 
 the sampler's later steps then continue from the corrected ``x̂0``, so the body the
 model finishes is its own, fitted to the planted feet. The root trajectory is not moved
@@ -35,8 +41,8 @@ from jaxmotion.constants import ACTION_CLASSES, FOOT_JOINTS, SCENE_FPS
 from jaxmotion.eval.skating import FOOT_FLOOR_OFFSETS
 from jaxmotion.motion.representation import TRAJECTORY_DIM, motion_to_joints
 
-__all__ = ["ACTIVE_FRACTION", "CONTACT_HEIGHT", "FLOOR_SCALE", "ITERATIONS", "SLIDE_SCALE", "STEP",
-           "foot_loss", "make_foot_refiner"]
+__all__ = ["ACTIVE_FRACTION", "CONTACT_HEIGHT", "FLOOR_SCALE", "ITERATIONS", "SINK_FRAMES",
+           "SINK_TOLERANCE", "SLIDE_SCALE", "STEP", "foot_loss", "make_foot_refiner"]
 
 #: A foot joint this far (m) above its flat-foot height is half "near the floor".
 CONTACT_HEIGHT = 0.05
@@ -45,6 +51,12 @@ CONTACT_SOFTNESS = 0.01
 #: Units of the two terms: a foot sliding at 0.5 m/s, the lowest foot 5 cm off the floor.
 SLIDE_SCALE = 0.5
 FLOOR_SCALE = 0.05
+#: A foot joint more than this (m) under its flat-foot height is in the floor: the sink term.
+SINK_TOLERANCE = 0.01
+#: The sink term is summed over the frames and divided by this many, not by the motion's
+#: length: a few frames in the floor (a perched start on a bar stool) are not diluted by the
+#: many where the feet are fine, whose gradient is exactly 0.
+SINK_FRAMES = 2.0
 #: Gradient steps per reverse step, and the size of each (normalised feature units).
 ITERATIONS = 3
 STEP = 1.0
@@ -62,7 +74,7 @@ _LIE = ACTION_CLASSES.index("lie")
 
 
 def foot_loss(features, betas, mask, action, floor_weight: float = 1.0):
-    """Sliding + floor terms (module docstring) of motion ``features [T, 135]`` (metres,
+    """Sliding + floor + sink terms (module docstring) of motion ``features [T, 135]`` (metres,
     crop frame), body ``betas [10]``, valid frames ``mask [T]``, ``action`` index.
 
     Returns a float32 scalar (mean over valid frame pairs / frames)."""
@@ -79,7 +91,9 @@ def foot_loss(features, betas, mask, action, floor_weight: float = 1.0):
     lowest = -CONTACT_SOFTNESS * jax.nn.logsumexp(-height / CONTACT_SOFTNESS, axis=1)
     valid = mask.astype(jnp.float32) * (jnp.asarray(action) != _LIE)
     floor = jnp.sum(valid * (lowest / FLOOR_SCALE) ** 2) / jnp.maximum(jnp.sum(mask), 1.0)
-    return slide + floor_weight * floor
+    under = jax.nn.relu(-height - SINK_TOLERANCE) / FLOOR_SCALE  # [T, F]
+    sink = jnp.sum(mask.astype(jnp.float32)[:, None] * under ** 2) / SINK_FRAMES
+    return slide + floor_weight * floor + sink
 
 
 def make_foot_refiner(betas, mask, action, mean, std, strength: float = 1.0, *,

@@ -313,6 +313,14 @@ def test_trajectory_sensors_of_padded_frames_are_finite_and_unturned():
     np.testing.assert_array_equal(s[3], np.asarray(ref)[0])
 
 
+def _one_case(data):
+    """``sample_one``'s positional arguments for the first test case (crop frame, no text)."""
+    ds = Dataset(data / "data", "test", CropSpec(num_points=256, rotate=False))
+    b = ds.host_batch([0], np.random.default_rng(0))
+    return (jax.random.key(0), b["points"][0], b["normals"][0], b["target_mask"][0],
+            jnp.zeros(384), b["betas"][0], b["mask"][0])
+
+
 def test_a_completion_model_trains_and_samples_with_the_trajectory_sensor(data, runs):
     """Trains (finite losses), and samples with the sensor on the stage-1 trajectory or on
     the noisy estimate at every step: same trajectory, different bodies; the runner takes the
@@ -327,10 +335,7 @@ def test_a_completion_model_trains_and_samples_with_the_trajectory_sensor(data, 
     traj = runs["trajectory"][1].workdir
     pipe = ObjectCentricPipeline.from_files(traj / "model.safetensors",
                                             data / "comp_ts" / "model.safetensors")
-    ds = Dataset(data / "data", "test", CropSpec(num_points=256, rotate=False))
-    b = ds.host_batch([0], np.random.default_rng(0))
-    args = (jax.random.key(0), b["points"][0], b["normals"][0], b["target_mask"][0],
-            jnp.zeros(384), b["betas"][0], b["mask"][0])
+    args = _one_case(data)
     spec = SamplerSpec("ddim", 3)
     on_traj = pipe.sample_one(*args, trajectory_spec=spec, completion_spec=spec)
     on_est = pipe.sample_one(*args, trajectory_spec=spec, completion_spec=spec,
@@ -495,10 +500,7 @@ def test_eval_scores_an_object_centric_row(data, runs):
 def test_completion_holds_the_stage_one_trajectory_unless_told_not_to(data, runs):
     pipe = ObjectCentricPipeline.from_files(runs["trajectory"][1].workdir / "model.safetensors",
                                             runs["completion"][1].workdir / "model.safetensors")
-    ds = Dataset(data / "data", "test", CropSpec(num_points=256, rotate=False))
-    b = ds.host_batch([0], np.random.default_rng(0))
-    args = (jax.random.key(0), b["points"][0], b["normals"][0], b["target_mask"][0],
-            jnp.zeros(384), b["betas"][0], b["mask"][0])
+    args = _one_case(data)
     spec = SamplerSpec("ddim", 3)
     kept = pipe.sample_one(*args, trajectory_spec=spec, completion_spec=spec)
     np.testing.assert_allclose(np.asarray(kept["motion"][:, :9]),

@@ -194,10 +194,11 @@ class ObjectCentricPipeline:
             the frames of ``prefix`` that are given (inpainted in both stages: the previous
             step's last frames when motions are joined); None: none.
           traj_sensor_on: where a completion model with ``traj_sensor`` places the
-            trajectory sensor: ``"trajectory"``, on the stage-1 trajectory once (the default,
-            measured better: docs/results.md, "Where the trajectory sensor sits"), or
-            ``"estimate"``, on the trajectory of the current noisy sample at every denoising
-            step (the authors' code). Models without the sensor ignore it.
+            trajectory sensor: ``"trajectory"``, on the stage-1 trajectory once (the default:
+            the same scores for half the sampling time, docs/results.md, "The trajectory
+            sensor: trainable, and where it sits"), or ``"estimate"``, on the trajectory of
+            the current noisy sample at every denoising step (the authors' code). Models
+            without the sensor ignore it.
         Returns:
           ``{"trajectory" [T, 9], "motion" [T, 135], "joints" [T, 22, 3]}`` in metres, crop
           frame; frames outside ``mask`` are not meaningful.

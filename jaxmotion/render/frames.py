@@ -24,7 +24,6 @@ PNG (optionally with faint "ghost" bodies at earlier frames).
 from __future__ import annotations
 
 import contextlib
-
 import math
 import os
 import tempfile
@@ -438,24 +437,12 @@ def _beside(fn):
     if fn is None:
         yield
         return
-    import threading
+    from concurrent.futures import ThreadPoolExecutor
 
-    error: list[BaseException] = []
-
-    def run():
-        try:
-            fn()
-        except BaseException as e:  # noqa: BLE001 - raised on the caller's thread below
-            error.append(e)
-
-    thread = threading.Thread(target=run, name="beside the video", daemon=True)
-    thread.start()
-    try:
+    with ThreadPoolExecutor(1, thread_name_prefix="beside the video") as pool:
+        done = pool.submit(fn)
         yield
-    finally:
-        thread.join()
-    if error:
-        raise error[0]
+    done.result()
 
 
 def render_still(path_png, clip: Clip, *, frame: int | None = None, ghosts: int = 0) -> Path:

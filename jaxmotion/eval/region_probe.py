@@ -28,11 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxmotion.options import DEFAULT_GUIDANCE
+from jaxmotion.options import DEFAULT_ADM_STEPS, DEFAULT_GUIDANCE
 
-#: DDIM steps of the probe's ADM (more than generate's :data:`~jaxmotion.options.DEFAULT_ADM_STEPS`:
-#: the probe measures the region choice, not the time it takes).
-PROBE_STEPS = 20
 __all__ = ["case_regions", "region_probe"]
 
 
@@ -41,7 +38,8 @@ def case_regions(data_dir, split: str, pipe, *, num_cases: int | None = None,
                  progress: bool = False) -> list[dict]:
     """Where ``jaxmotion generate`` would centre its crop for each of the first ``num_cases``
     cases of a split, given only the room and the instruction (the very code ``generate``
-    runs: :func:`jaxmotion.grounding.find_region` with the pipeline's ADM).
+    runs: :func:`jaxmotion.grounding.find_region` with the pipeline's ADM). ``sampler``: the
+    ADM's (default generate's: DDIM, its steps and guidance).
 
     Returns per case ``centre`` (xy, world), ``chosen`` (object id or None), ``how``
     (:attr:`jaxmotion.result.Generation.grounding`), ``target`` (the dataset's target id),
@@ -68,7 +66,7 @@ def case_regions(data_dir, split: str, pipe, *, num_cases: int | None = None,
                                 "dataset with `jaxmotion synth --out DIR`")
     spec = crop_spec_from_config(pipe.amdm_config)
     sampler = sampler if sampler is not None else SamplerSpec(
-        "ddim", PROBE_STEPS, guidance=DEFAULT_GUIDANCE[0])
+        "ddim", DEFAULT_ADM_STEPS, guidance=DEFAULT_GUIDANCE[0])
     encoder = load_text_encoder(TEXT_ENCODER)
     out = []
     for i, f in enumerate(tqdm(files, desc="regions", disable=not progress)):
@@ -92,18 +90,19 @@ def case_regions(data_dir, split: str, pipe, *, num_cases: int | None = None,
 
 
 def region_probe(data_dir, adm=None, amdm=None, *, split: str = "val", num_cases: int = 200,
-                 grounding: str = "auto", steps: int = PROBE_STEPS,
+                 grounding: str = "auto", steps: int = DEFAULT_ADM_STEPS,
                  guidance: float = DEFAULT_GUIDANCE[0], seed: int = 0,
                  progress: bool = False) -> dict:
     """Run the probe (module docstring); returns the rates, the counts and the settings."""
     from jaxmotion.diffusion import SamplerSpec
     from jaxmotion.pipelines.affordance import AffordancePipeline
-    from jaxmotion.pipelines.checkpoints import default_checkpoints
+    from jaxmotion.pipelines.checkpoints import default_checkpoints, text_adm_for
 
     if grounding not in ("auto", "adm"):
         raise ValueError(f"grounding must be 'auto' or 'adm', got {grounding!r}")
     default_adm, default_amdm = default_checkpoints()
-    pipe = AffordancePipeline.from_workdirs(adm or default_adm, amdm or default_amdm)
+    adm = adm or text_adm_for(default_adm)  # generate's ADM when no target is known
+    pipe = AffordancePipeline.from_workdirs(adm, amdm or default_amdm)
     regions = case_regions(data_dir, split, pipe, num_cases=num_cases, grounding=grounding,
                            sampler=SamplerSpec("ddim", int(steps), guidance=float(guidance)),
                            seed=seed, progress=progress)
@@ -115,19 +114,21 @@ def region_probe(data_dir, adm=None, amdm=None, *, split: str = "val", num_cases
     return {"cases": len(rows), "multi_cases": int(multi.sum()),
             "hit": float(hit.mean()), "hit_multi": rate(hit, multi),
             "chance": float(chance.mean()), "chance_multi": rate(chance, multi),
-            "split": split, "grounding": grounding, "adm": str(adm or default_adm),
+            "split": split, "grounding": grounding, "adm": str(adm),
             "room_view": pipe.room_view, "steps": steps, "guidance": guidance, "seed": seed}
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", required=True, help="dataset folder (jaxmotion synth)")
-    ap.add_argument("--adm", default=None, help="ADM workdir or .safetensors (default: shipped)")
+    ap.add_argument("--adm", default=None, help="ADM workdir or .safetensors (default: the "
+                    "shipped ADM generate chooses regions with)")
     ap.add_argument("--amdm", default=None, help="AMDM workdir or .safetensors (default: shipped)")
     ap.add_argument("--split", default="val")
     ap.add_argument("--cases", type=int, default=200, help="first cases of the split (200)")
     ap.add_argument("--grounding", choices=("auto", "adm"), default="auto")
-    ap.add_argument("--steps", type=int, default=PROBE_STEPS, help=f"DDIM steps ({PROBE_STEPS})")
+    ap.add_argument("--steps", type=int, default=DEFAULT_ADM_STEPS,
+                    help=f"DDIM steps of the ADM (default generate's, {DEFAULT_ADM_STEPS})")
     ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE[0],
                     help=f"ADM guidance scale ({DEFAULT_GUIDANCE[0]:g})")
     ap.add_argument("--seed", type=int, default=0)

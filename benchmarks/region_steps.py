@@ -29,20 +29,16 @@ TILE_TEXTS = ("wander around for a bit", "dance around the room", "walk around",
               "stroll around for a while")
 
 
-def tile_regions(data_dir, split: str, pipe, sampler, seed: int) -> list[tuple]:
-    """``(centre, chosen id)`` of generate's region choice for :data:`TILE_TEXTS` in every
-    room of the split."""
+def tile_regions(data_dir, split: str, pipe, embs, sampler, seed: int) -> list[tuple]:
+    """``(centre, chosen id)`` of generate's region choice for :data:`TILE_TEXTS` (``embs``:
+    their text conditions) in every room of the split."""
     import jax
 
-    from jaxmotion.constants import TEXT_ENCODER
     from jaxmotion.data.crop import crop_spec_from_config
     from jaxmotion.grounding import AdmChooser, find_region
     from jaxmotion.scene import load_scene
-    from jaxmotion.text import load_text_encoder
 
     spec = crop_spec_from_config(pipe.amdm_config)
-    encoder = load_text_encoder(TEXT_ENCODER)
-    embs = {t: pipe.embed_text([t], encoder) for t in TILE_TEXTS}
     files = sorted((Path(data_dir) / "samples" / split).glob("*.npz"))
     scenes = sorted({str(np.load(f)["scene_id"]) for f in files})
     out = []
@@ -57,10 +53,12 @@ def tile_regions(data_dir, split: str, pipe, sampler, seed: int) -> list[tuple]:
 
 
 def main(argv=None) -> int:
+    from jaxmotion.constants import TEXT_ENCODER
     from jaxmotion.diffusion import SamplerSpec
     from jaxmotion.eval.region_probe import case_regions
     from jaxmotion.pipelines.affordance import AffordancePipeline
     from jaxmotion.pipelines.checkpoints import default_checkpoints, text_adm_for
+    from jaxmotion.text import load_text_encoder
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", required=True)
@@ -71,6 +69,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     adm, amdm = default_checkpoints()
     pipe = AffordancePipeline.from_workdirs(text_adm_for(adm), amdm)
+    encoder = load_text_encoder(TEXT_ENCODER)
+    embs = {t: pipe.embed_text([t], encoder) for t in TILE_TEXTS}  # once for every run
     runs = [(5, 0), (5, 1), *((int(s), 0) for s in args.steps.split(","))]
     cands, tiles = {}, {}
     for steps, seed in runs:
@@ -79,7 +79,7 @@ def main(argv=None) -> int:
         cands[steps, seed] = [r for r in case_regions(
             args.data, args.split, pipe, num_cases=args.cases, grounding="adm",
             sampler=sampler, seed=seed) if r["named"] > 1]
-        tiles[steps, seed] = tile_regions(args.data, args.split, pipe, sampler, seed)
+        tiles[steps, seed] = tile_regions(args.data, args.split, pipe, embs, sampler, seed)
         print(f"  {steps} steps, seed {seed}: {time.perf_counter() - t:.0f} s", flush=True)
     base_c, base_t = cands[5, 0], tiles[5, 0]
     print(f"{len(base_c)} cases with several objects of the named class, {len(base_t)} room x "

@@ -191,4 +191,3 @@ def guess_category(similarity: TextSimilarity, phrase: str,
         f"a {phrase}", {c: (category_phrase(c),) for c in categories})
     ok = best >= CATEGORY_THRESHOLD and best - second >= CATEGORY_MARGIN
     return (label if ok else None), best
-

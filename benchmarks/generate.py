@@ -10,13 +10,15 @@ Prints wall-clock seconds of the whole process (import, load, sampling, body fit
 every output) and the per-stage split reported by the command itself.
 
 With ``--new-texts`` warm runs ask for sentences never seen before (the text encoder runs; two
-name no object of the demo room, so the room is tiled, one of them with a verb only the
-sentence encoder's similarity reads; one leaves the ADM two candidates), in two rounds of the
-same kinds: the first round may trace a program for a new shape (once per
-cache), the second is what a user typing new sentences gets from then on.
+name no object of the demo room, so an object to walk to is drawn, one of them with a verb
+only the sentence encoder's similarity reads; one names a class the room has two of, so the
+free floor chooses), in two rounds of the same kinds: the first round may trace a program for
+a new shape (once per cache), the second is what a user typing new sentences gets from then
+on. ``--grounding adm`` times the affordance model's choice instead for those kinds.
 
     python benchmarks/generate.py [--runs 3] [--steps 20] [--video mp4|gif|none] [--consistency S]
         [--adm-candidates C] [--adm-steps N] [--motion-candidates M] [--new-texts]
+        [--grounding auto|adm]
         [--pipeline auto|affordance|object-centric] [--object-checkpoints DIR | TRAJ COMP]
 """
 
@@ -33,10 +35,9 @@ import tempfile
 import time
 
 #: Sentences for --new-texts, in two rounds of the same kinds (the first of a kind may trace a
-#: program for its shape, e.g. the room's tiles: once per cache): the target found by class,
-#: the ADM among two candidates, no object of the room named (tiles) with a known verb, the
-#: same with a verb the word lists do not know (the sentence encoder's similarity reads it),
-#: a target told by class.
+#: program for its shape: once per cache): the target found by class, a class the room has two
+#: of, no object of the room named with a known verb, the same with a verb the word lists do
+#: not know (the sentence encoder's similarity reads it), a target told by class.
 NEW_TEXTS = (
     ("take a seat on the chair at the table", "sit down on the stool", "wander around for a bit",
      "jump around for a bit", "go and stand by the table"),
@@ -63,6 +64,8 @@ def run_once(cache: str, out: str, args, text: str | None = None) -> tuple[float
         cmd += ["--adm-steps", str(args.adm_steps)]
     if args.pipeline != "auto":
         cmd += ["--pipeline", args.pipeline]
+    if args.grounding != "auto":
+        cmd += ["--grounding", args.grounding]
     if args.object_checkpoints:
         cmd += ["--object-checkpoints", *args.object_checkpoints]
     t0 = time.perf_counter()
@@ -85,6 +88,9 @@ def main():
     ap.add_argument("--pipeline", default="auto", choices=("auto", "affordance", "object-centric"),
                     help="which pipeline generate runs (default: generate's own, auto; time two "
                     "in one session to compare)")
+    ap.add_argument("--grounding", default="auto", choices=("auto", "adm"),
+                    help="how several candidates (or none named) are chosen among (default: "
+                    "generate's own, auto: the room's free floor; adm: the ADM's map)")
     ap.add_argument("--object-checkpoints", nargs="+", default=None,
                     help="the object-centric models (folder, or trajectory and completion runs)")
     ap.add_argument("--consistency", type=float, default=None,
@@ -98,14 +104,16 @@ def main():
     ap.add_argument("--new-texts", action="store_true",
                     help="also time warm runs of sentences never seen before (up to 10)")
     args = ap.parse_args()
-    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}")
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, "
+          f"python {platform.python_version()}")
     print(f"jaxmotion generate --scene demo --steps {args.steps} --samples {args.samples} "
           f"--video {args.video}"
           + ("" if args.consistency is None else f" --consistency {args.consistency:g}")
           + ("" if args.adm_candidates is None else f" --adm-candidates {args.adm_candidates}")
           + ("" if args.adm_steps is None else f" --adm-steps {args.adm_steps}")
           + ("" if args.motion_candidates is None
-             else f" --motion-candidates {args.motion_candidates}"))
+             else f" --motion-candidates {args.motion_candidates}")
+          + ("" if args.grounding == "auto" else f" --grounding {args.grounding}"))
     with tempfile.TemporaryDirectory() as tmp:
         cache, out = os.path.join(tmp, "cache"), os.path.join(tmp, "out")
         cold, cold_st = run_once(cache, out, args)

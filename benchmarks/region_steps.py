@@ -1,14 +1,16 @@
 """How many DDIM steps the ADM's region choice needs, and how much its choice is noise.
 
-``generate`` runs the crop-view ADM to choose the region when the words leave several objects
-of the named class (one map per candidate) or none (one map per tile of the room). The choice
-is a ranking of maps, not the map the motion is drawn from, so it may need fewer steps than
-the affordance stage. For each step count this prints, on a dataset split's rooms:
+``generate --grounding adm`` runs the crop-view ADM to choose the region when the words leave
+several objects of the named class (one map per candidate) or none (one map per tile of the
+room). The choice is a ranking of maps, not the map the motion is drawn from, so it may need
+fewer steps than the affordance stage. For each step count this prints, on a dataset split's
+rooms:
 
 - among candidates (``--grounding adm``: every object of the named class): how often the
   chosen object is the one meant, and how often the choice is the baseline's (5 steps, seed 0);
-- among tiles (texts naming no object: "wander around for a bit", ...): how often the chosen
-  object is the baseline's, and the chosen square's centre within 0.5 m of it;
+- among tiles (texts naming no object, ``--grounding adm``: "wander around for a bit", ...):
+  how often the chosen object is the baseline's, and the chosen square's centre within 0.5 m
+  of it;
 
 and the same agreements for the baseline with another seed: the choice's own noise, which a
 step count within it does not change.
@@ -46,7 +48,7 @@ def tile_regions(data_dir, split: str, pipe, embs, sampler, seed: int) -> list[t
         room = load_scene(Path(data_dir) / "scenes" / f"{sid}.npz")
         for j, text in enumerate(TILE_TEXTS):
             key = jax.random.fold_in(jax.random.key(seed), i * len(TILE_TEXTS) + j)
-            centre, chosen, _ = find_region(room, text, "auto", spec, adm=AdmChooser(
+            centre, chosen, _ = find_region(room, text, "adm", spec, adm=AdmChooser(
                 lambda: pipe, embs[text], lambda k=key: k, sampler, seed + i))
             out.append((np.asarray(centre), chosen))
     return out

@@ -550,9 +550,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "0 = off)")
     p.add_argument("--grounding", choices=("auto", "adm", "llm"), default=None,
                    help="auto (default): a relation in the text ('the chair closest to the "
-                   "door') narrows the named objects by the room's geometry before the ADM "
-                   "chooses (needs an object table: synthetic rooms, labelled scans); adm: the "
-                   "ADM's map alone; llm: a language model at JAXMOTION_LLM_URL (any "
+                   "door') narrows the named objects by the room's geometry; among several "
+                   "left, the one with the most free floor around it is taken, and a text "
+                   "naming no object walks to one drawn with the seed (needs an object table: "
+                   "synthetic rooms, labelled scans; without one the ADM's map chooses); adm: "
+                   "the ADM's map chooses; llm: a language model at JAXMOTION_LLM_URL (any "
                    "OpenAI-compatible server; JAXMOTION_LLM_MODEL, JAXMOTION_LLM_API_KEY) "
                    "chooses the target in two prompts, saved as grounding_llm.json")
     p.add_argument("--adm-candidates", type=int, default=None, metavar="C",

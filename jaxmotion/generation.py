@@ -15,9 +15,9 @@ This module only orchestrates; each stage lives in its own module:
 2. **load** the scene (:func:`jaxmotion.scene.demo.load_scene_arg`: ``"demo"``, a path or a
    :class:`~jaxmotion.scene.Scene`) and warn when it does not look z-up with its floor at 0;
 3. **ground** (:mod:`jaxmotion.grounding`): the target object from ``object_id``, the scene
-   graph (a relation in the text), the only object of the named class, or the ADM's map among
-   the candidates; the crop square the models see is centred on it (or on the room's
-   strongest predicted affordance when the text names no object of the room);
+   graph, the only object of the named class, or, among several or none named, the room's
+   free floor (:mod:`jaxmotion.grounding.reach`) or the ADM's map (``grounding="adm"``, a
+   scene without labels); the crop square the models see is centred on it;
 4. **synthesize** the K samples in one compiled, vmapped program (kept on disk by
    :mod:`jaxmotion.compiled`, loaded while stage 3 runs): ``pipeline="auto"`` (the default)
    runs the object-centric pipeline (:mod:`jaxmotion.pipelines.object_centric`: sensors, root
@@ -192,7 +192,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
                                                                       models.text_adm)), split=0,
                              blank_text=blank_condition(adm_text_tokens(models.adm_config)))
         centre, chosen, how = find_region(room, instruction, opts.grounding, spec, view=view,
-                                          adm=chooser)
+                                          adm=chooser, seed=opts.seed)
         if not models.room_view:
             lap("region")
     understood = explain(room, instruction, chosen, how, opts, echo=progress)  # warns, too

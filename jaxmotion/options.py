@@ -112,9 +112,12 @@ class GenerateOptions:
       guidance: classifier-free guidance ``(ADM, AMDM)``; one number sets both (1 = none).
       consistency: strength in [0, 1] of affordance-consistency guidance (0 = off).
       grounding: ``auto`` (a relation in the text narrows the named objects by the scene's
-        geometry before the ADM chooses), ``adm`` (the ADM alone) or ``llm`` (a language model
-        at ``JAXMOTION_LLM_URL`` chooses the target in two prompts,
-        :mod:`jaxmotion.grounding.llm`; prompts and answers saved as ``grounding_llm.json``).
+        geometry; among several left, the one a body reaches most freely; with none named, a
+        walk to an object drawn with the seed: :mod:`jaxmotion.grounding.reach`), ``adm``
+        (the ADM's map chooses among the named class, or where it is strongest when none is
+        named) or ``llm`` (a language model at ``JAXMOTION_LLM_URL`` chooses the target in two
+        prompts, :mod:`jaxmotion.grounding.llm`; prompts and answers saved as
+        ``grounding_llm.json``).
       adm_candidates: once the target is known, the ADM draws this many maps per sample and
         the one lighting the target most is kept (1..32).
       motion_candidates: once the target is known, the AMDM draws this many motions per sample

@@ -42,8 +42,10 @@ class Generation:
         relation singled the object out), ``class`` (the only object of the named class),
         ``seat at`` (the seat at the named desk / table), ``named id`` ("chair 3"),
         ``related`` / ``action`` / ``similarity`` (a stand-in for a class the room lacks,
-        the only object the action takes, the class nearest the words by meaning), ``adm``
-        (the ADM's map chose among candidates) or ``adm peak`` (no candidates).
+        the only object the action takes, the class nearest the words by meaning), ``reach``
+        (among several, the one with the most free floor to approach it on), ``wander`` (no
+        object named: a walk to an object drawn with the seed), ``adm`` (the ADM's map chose
+        among candidates) or ``adm peak`` (no candidates; the ADM's strongest tile).
       understanding: what was understood from the text, said plainly: the action, the
         target and how it was chosen, warnings
         (:class:`~jaxmotion.grounding.report.Understanding`), or None.

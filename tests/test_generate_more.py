@@ -103,12 +103,16 @@ def _bare_demo():
 
 
 def test_text_naming_no_object_tiles_the_room(ckpt):
-    """The room is tiled; in a labelled room the object the map lights most in the strongest
-    tile is the target, in a room without objects there is none."""
+    """A text naming no object: by default a walk to an object drawn with the seed; with
+    ``grounding="adm"`` the room is tiled and the object the map lights most in the strongest
+    tile is the target; in a room without objects the tiles decide and there is none."""
     r = jaxmotion.generate("demo", "dance around for a while", checkpoints=ckpt, fit=False,
                            **FAST)
-    assert r.grounding == "adm peak" and r.joints.shape == (1, 120, 22, 3)
+    assert r.grounding == "wander" and r.joints.shape == (1, 120, 22, 3)
     assert r.target_id in {int(o["id"]) for o in r.scene.objects}
+    r = jaxmotion.generate("demo", "dance around for a while", checkpoints=ckpt, fit=False,
+                           grounding="adm", **FAST)
+    assert r.grounding == "adm peak" and r.target_id in {int(o["id"]) for o in r.scene.objects}
     r = jaxmotion.generate(_bare_demo(), "dance around for a while", checkpoints=ckpt,
                            fit=False, **FAST)
     assert r.target_id is None and r.joints.shape == (1, 120, 22, 3)
@@ -179,17 +183,18 @@ def test_a_new_sentence_s_encoder_loads_while_the_scene_is_read(tmp_path):
 
 
 def test_the_adm_s_kept_program_loads_while_the_text_encodes(ckpt, tmp_path, monkeypatch):
-    """With candidates to choose among, a repeated generate starts loading the ADM's kept
-    program before the text condition is computed, and the choice takes it."""
+    """With candidates for the ADM to choose among, a repeated generate starts loading its
+    kept program before the text condition is computed, and the choice takes it."""
     import jaxmotion.compiled as C
 
     monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "cache"))
     started, real = [], C.prefetch
     monkeypatch.setattr(C, "prefetch", lambda d, name, *a: started.append(
         (name, real(d, name, *a))) or started[-1][1])
-    first = jaxmotion.generate("demo", "sit on the stool", checkpoints=ckpt, fit=False, **FAST)
+    kw = dict(checkpoints=ckpt, fit=False, grounding="adm", **FAST)
+    first = jaxmotion.generate("demo", "sit on the stool", **kw)
     C.release()  # as a new process
-    again = jaxmotion.generate("demo", "sit on the stool", checkpoints=ckpt, fit=False, **FAST)
+    again = jaxmotion.generate("demo", "sit on the stool", **kw)
     assert first.grounding == "adm" and ("adm_region", True) in started
     assert C.prefetched() == () and again.target_id == first.target_id
     np.testing.assert_array_equal(again.joints, first.joints)
@@ -308,9 +313,8 @@ def test_text_only_adm_when_no_target_is_known(ckpt, tmp_path, monkeypatch):
 
 def test_the_default_pipeline_is_object_centric_when_the_target_is_known(ckpt, tmp_path):
     """``pipeline="auto"`` (the default): the object-centric models sample when the text's
-    target is found, or when the text names no object and the ADM's strongest tile holds one
-    (a walk to it when no action is understood either); the affordance pipeline when no
-    target is (a scene without objects)."""
+    target is found, or when the text names no object and one is drawn to walk to; the
+    affordance pipeline when no target is (a scene without objects)."""
     from jaxmotion.options import GenerateOptions
 
     assert GenerateOptions().pipeline == "auto"
@@ -320,7 +324,7 @@ def test_the_default_pipeline_is_object_centric_when_the_target_is_known(ckpt, t
     assert json.loads(jaxmotion.export.summary(r))["pipeline"] == "object-centric"
     assert np.isfinite(r.joints).all() and r.joints.shape == (1, 120, 22, 3)
     r = jaxmotion.generate("demo", "dance around for a while", **kw)
-    assert r.pipeline == "object-centric" and r.grounding == "adm peak"
+    assert r.pipeline == "object-centric" and r.grounding == "wander"
     assert r.target_id in {int(o["id"]) for o in r.scene.objects}
     assert any("a walk to" in n for n in r.understanding.notes)
     bare = _bare_demo()

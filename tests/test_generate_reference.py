@@ -4,7 +4,8 @@
 checkpoints before the package was restructured into stages (grounding / pipelines / export):
 the restructuring changed where code lives, not what it computes. Each case is one way of
 finding the target: the only object of its class (demo room), the scene graph's relation,
-``object_id``, the ADM among several candidates, and the room's tiles (no object named).
+``object_id``, the free floor among several candidates and for a text naming no object, and
+the ADM's map for both.
 The joints are recorded under the XLA flags of ``tests/conftest.py``
 (``--xla_cpu_multi_thread_eigen=false``: threading changes the order of float sums, so the
 flags are part of "the same computation"). Regenerate the file only for a deliberate change
@@ -18,6 +19,10 @@ object the ADM's map lights most in its strongest tile, and the ADM is told it. 
 again on 2026-11-27: the sentence encoder's one-sentence program now turns the weights inside
 the program and gives the embedding and the token states in one pass, which moves the
 embeddings by ~1e-7 and the joints by at most 0.08 mm (same targets, same motions).
+``room_4`` and ``room_5`` again on 2026-11-27: the default grounding chooses among several
+objects, or for a text naming none, by the room's free floor (:mod:`jaxmotion.grounding.reach`)
+instead of the ADM's map; ``room_6`` and ``room_7`` (recorded then) keep the ADM's choice
+(``grounding="adm"``).
 """
 
 from __future__ import annotations
@@ -30,15 +35,17 @@ import pytest
 
 REFERENCE = Path(__file__).parent / "data" / "generate_reference.npz"
 ROOM_SEED = 500  # a kitchen-dining room: a table, three chairs, a tv, a fridge
-CASES = {  # name: (text, object_id, seed)
-    "room_0": ("sit on the chair farthest from the tv", None, 0),
-    "room_1": ("walk to the fridge", None, 1),
-    "room_2": ("stand up from the chair", 5, 2),
-    "room_3": ("sit on the sofa", None, 3),
-    "room_4": ("dance around", None, 4),
-    "room_5": ("sit on the chair", None, 5),
+CASES = {  # name: (text, object_id, seed, grounding)
+    "room_0": ("sit on the chair farthest from the tv", None, 0, "auto"),
+    "room_1": ("walk to the fridge", None, 1, "auto"),
+    "room_2": ("stand up from the chair", 5, 2, "auto"),
+    "room_3": ("sit on the sofa", None, 3, "auto"),
+    "room_4": ("dance around", None, 4, "auto"),
+    "room_5": ("sit on the chair", None, 5, "auto"),
+    "room_6": ("dance around", None, 4, "adm"),
+    "room_7": ("sit on the chair", None, 5, "adm"),
 }
-FAST = ("room_5",)  # the ADM's choice among candidates; the rest run with -m slow
+FAST = ("room_5",)  # the choice among candidates; the rest run with -m slow
 
 
 @pytest.fixture(scope="module")
@@ -62,9 +69,9 @@ def test_demo_room_is_unchanged():
 def test_synthetic_room_is_unchanged(room, name):
     import jaxmotion
 
-    text, object_id, seed = CASES[name]
+    text, object_id, seed, grounding = CASES[name]
     r = jaxmotion.generate(room, text, samples=1, seed=seed, fit=False, object_id=object_id,
-                           pipeline="affordance")
+                           pipeline="affordance", grounding=grounding)
     np.testing.assert_array_equal(r.joints, np.load(REFERENCE)[name])
 
 
@@ -77,9 +84,10 @@ def record() -> None:
                                       seed=3, fit=False, pipeline="affordance").joints}
     scene = room_to_scene(sample_room(ROOM_SEED), 20000, np.random.default_rng(ROOM_SEED))
     scene = dataclasses.replace(scene, name=f"room{ROOM_SEED}")
-    for name, (text, object_id, seed) in CASES.items():
+    for name, (text, object_id, seed, grounding) in CASES.items():
         out[name] = jaxmotion.generate(scene, text, samples=1, seed=seed, fit=False,
-                                       object_id=object_id, pipeline="affordance").joints
+                                       object_id=object_id, pipeline="affordance",
+                                       grounding=grounding).joints
         print(name, out[name].shape, flush=True)
     np.savez_compressed(REFERENCE, **out)
     print(f"wrote {REFERENCE}")

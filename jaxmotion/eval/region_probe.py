@@ -38,8 +38,9 @@ def case_regions(data_dir, split: str, pipe, *, num_cases: int | None = None,
                  progress: bool = False) -> list[dict]:
     """Where ``jaxmotion generate`` would centre its crop for each of the first ``num_cases``
     cases of a split, given only the room and the instruction (the very code ``generate``
-    runs: :func:`jaxmotion.grounding.find_region` with the pipeline's ADM). ``sampler``: the
-    ADM's (default generate's: DDIM, its steps and guidance).
+    runs: :func:`jaxmotion.grounding.find_region`; among several candidates the room's free
+    floor chooses, or with ``grounding="adm"`` the pipeline's ADM). ``sampler``: the ADM's
+    (default generate's: DDIM, its steps and guidance).
 
     Returns per case ``centre`` (xy, world), ``chosen`` (object id or None), ``how``
     (:attr:`jaxmotion.result.Generation.grounding`), ``target`` (the dataset's target id),
@@ -82,7 +83,7 @@ def case_regions(data_dir, split: str, pipe, *, num_cases: int | None = None,
                                   key, sampler, 1, seed + i, None, "", lambda: pipe)
         centre, chosen, how = find_region(
             room, text, grounding, spec, view=view,
-            adm=AdmChooser(lambda: pipe, emb, lambda k=key: k, sampler, seed + i))
+            adm=AdmChooser(lambda: pipe, emb, lambda k=key: k, sampler, seed + i), seed=seed + i)
         out.append({"centre": np.asarray(centre, np.float64), "chosen": chosen, "how": how,
                     "target": target, "named": len(named),
                     "has_target": any(o["id"] == target for o in named)})

@@ -2,8 +2,10 @@
 
 The AMDM sees a ``crop.size`` square (4 m) of the room, as in training, where the target object
 was always inside it. With a known target the square is centred on it; otherwise the
-candidates are the objects the text names (:func:`jaxmotion.grounding.target.candidate_objects`)
-and the ADM's map chooses among them:
+candidates are the objects the text names (:func:`jaxmotion.grounding.target.candidate_objects`).
+When they are several, or none, :func:`find_region` leaves the choice to the room's free
+floor (:mod:`jaxmotion.grounding.reach`, the default ``auto`` grounding) or to the ADM's map
+(``grounding="adm"``, and any scene without object labels):
 
 - a **crop-view ADM** (the shipped one; trained on the AMDM's squares) is run on a square
   centred on each candidate, and the one its map lights up most is chosen (affordance
@@ -12,7 +14,8 @@ and the ADM's map chooses among them:
 - a **room-view ADM** (trained with ``crop.centre=room``; experimental) is run once on its view
   of the whole room (rooms wider than its 8 m square are tiled) for every sample; the candidate
   the maps light up most is chosen, or without candidates the square is centred on the
-  strongest pelvis affordance.
+  strongest pelvis affordance. Its maps are the AMDM's input too, so with it they choose
+  whatever the grounding.
 """
 
 from __future__ import annotations
@@ -123,37 +126,60 @@ def lit(maps, instance, object_id) -> float:
 
 
 def find_region(room, text, grounding: str, spec, *, view=None,
-                adm: AdmChooser | None = None):
+                adm: AdmChooser | None = None, seed: int = 0):
     """The crop square for ``text`` when no target object is given: ``(centre [2], chosen
     object id or None, how)``; ``text``: the instruction or its
-    :class:`~jaxmotion.grounding.target.Instruction`. ``view``: a room-view ADM's
-    ``(view_index, maps)`` (:func:`room_view_maps`); else ``adm`` runs a crop-view ADM (:func:`choose_region`).
-    ``how`` (:attr:`jaxmotion.result.Generation.grounding`): how the text alone singled the
-    object out (:attr:`~jaxmotion.grounding.target.Candidates.how`: ``scene graph``,
-    ``class``, ``seat at``, ...), ``adm`` when the ADM chose among several, ``adm peak``
-    when the text names no object of the room. :class:`~jaxmotion.errors.GenerateError` when
-    the action needs an object the room does not have ("lie down" with no bed or sofa)."""
+    :class:`~jaxmotion.grounding.target.Instruction`.
+
+    The text alone may single the object out (``how``
+    :attr:`~jaxmotion.grounding.target.Candidates.how`: ``scene graph``, ``class``, ``seat
+    at``, ...). When it leaves several objects or names none, ``grounding`` decides:
+
+    - ``auto`` / ``llm`` in a labelled room: the room's free floor
+      (:mod:`jaxmotion.grounding.reach`): ``how`` is ``reach`` (the candidate a body reaches
+      most freely) or ``wander`` (no object named: a walk to an object drawn with ``seed``);
+    - ``adm``, or a scene without object labels: the ADM's map: ``view``, a room-view ADM's
+      ``(view_index, maps)`` (:func:`room_view_maps`), or ``adm`` running a crop-view ADM
+      (:func:`choose_region`); ``how`` is ``adm`` (among several) or ``adm peak`` (none named).
+
+    :class:`~jaxmotion.errors.GenerateError` when the action needs an object the room does not
+    have ("lie down" with no bed or sofa)."""
+    from jaxmotion.grounding.objects import object_table
+    from jaxmotion.grounding.target import Instruction, read_instruction
+
+    ins = text if isinstance(text, Instruction) else read_instruction(text)
     lo, hi = room.xyz[:, :2].min(0), room.xyz[:, :2].max(0)
     if grounding == "llm":  # the language model's choice, asked once per instruction
         from jaxmotion.grounding.llm import llm_candidates
 
-        found = llm_candidates(room, text)
+        found = llm_candidates(room, ins)
     else:
-        found = ground_candidates(room, text, grounding)
+        found = ground_candidates(room, ins, grounding)
     if found.error:  # "lie down" in a room with nothing to lie on
         raise GenerateError(found.error)
     candidates, how = found.objects, found.how
+    if len(candidates) == 1:
+        return centre_on_object(candidates[0], lo, hi, spec.size), candidates[0]["id"], how
+    objects = object_table(room)
+    if view is None and grounding != "adm" and objects:  # the room's free floor chooses
+        from jaxmotion.grounding.reach import most_reachable, wander_target
+
+        if candidates:
+            best = most_reachable(room, candidates, ins.action)
+            if best is not None:
+                o = candidates[best]
+                return centre_on_object(o, lo, hi, spec.size), o["id"], "reach"
+        else:
+            o = wander_target(room, objects, seed)
+            if o is not None:
+                return centre_on_object(o, lo, hi, spec.size), int(o["id"]), "wander"
     if view is not None:
         centre, chosen = region_from_view(room, candidates, *view, spec, lo, hi)
     else:
         if adm is None:
             raise ValueError("find_region needs a room-view ADM's view or an AdmChooser")
         centre, chosen = choose_region(adm, room, candidates, spec, lo, hi)
-    if len(candidates) > 1:
-        how = "adm"
-    elif not candidates:
-        how = "adm peak"
-    return centre, chosen, how
+    return centre, chosen, "adm" if candidates else "adm peak"
 
 
 def choose_region(adm: AdmChooser, room, candidates, spec, lo, hi):
@@ -194,10 +220,10 @@ def choose_region(adm: AdmChooser, room, candidates, spec, lo, hi):
 
 def sampled_action(action, how: str, chosen):
     """The action the motion is sampled as: the instruction's (``Instruction.action``), or,
-    when it names none and no object either (``how`` ``"adm peak"``) but a target was found
-    where the ADM's map is strongest (``chosen``), a walk to it; else None (the models read
-    the text as written)."""
-    if action is None and how == "adm peak" and chosen is not None:
+    when it names none and no object either (``how`` ``"wander"`` or ``"adm peak"``) but a
+    target was chosen for it (``chosen``), a walk to it; else None (the models read the text
+    as written)."""
+    if action is None and how in ("wander", "adm peak") and chosen is not None:
         return "walk"
     return action
 

@@ -8,8 +8,9 @@ JSON summary); it warns (:class:`UserWarning`, which the command line prints as
 
 - the action is not one of the four the models know (and says which they are),
 - the named object's class is not in the room (and what was done instead),
-- several objects fit the text (which one the ADM's map chose, and that ``--object ID`` or
-  a relation — with an example that singles out another — chooses another),
+- several objects fit the text (which one was chosen — the one a body reaches most freely,
+  or the ADM's map's — and that ``--object ID`` or a relation — with an example that
+  singles out another — chooses another),
 - the object does not take the action ("lie on the chair"), or the text asks for more than
   one motion;
 
@@ -89,8 +90,10 @@ def explain(room, instruction, chosen, how: str, options=None, *, echo: bool = F
     warns: list[str] = []
     action_from = ""
     if ins.action is None:
-        done = ("with no object named either, it is done as a walk to the object the ADM's map "
-                "lights most" if sampled_action(None, how, chosen) == "walk" else
+        walk_to = ("an object drawn with the seed" if how == "wander" else
+                   "the object the ADM's map lights most")
+        done = (f"with no object named either, it is done as a walk to {walk_to}"
+                if sampled_action(None, how, chosen) == "walk" else
                 "the text goes to them as written, so expect one of those")
         warns.append(f"could not tell which action {ins.text!r} asks for: jaxmotion's models "
                      f"{_ACTIONS}; {done} (say e.g. 'walk to the door' or 'sit on the chair')")
@@ -130,12 +133,16 @@ def explain(room, instruction, chosen, how: str, options=None, *, echo: bool = F
             notes.append("target: none; " + ("the text names no object of this room" if objects
                                              else "the scene has no object labels")
                          + ", so the region is where the ADM's map is strongest")
-        elif how == "adm" and len(found.objects) > 1:
+        elif how in ("adm", "reach") and len(found.objects) > 1:
             names = ", ".join(_name(o) for o in found.objects)
-            notes.append(f"target: {target}, chosen by the ADM's map among {names}")
+            by = ("the ADM's map" if how == "adm" else
+                  "the most free floor to approach it on")
+            notes.append(f"target: {target}, chosen by {by} among {names}")
             hint = relation_hint(objects, found.objects, int(chosen))
-            warns.append(f"{len(found.objects)} objects fit the text ({names}); the ADM's map "
-                         f"chose {target}. To choose another, pass --object ID (object_id=ID)"
+            chose = ("the ADM's map chose " + target if how == "adm" else
+                     f"chose {target}, the one with the most free floor around it")
+            warns.append(f"{len(found.objects)} objects fit the text ({names}); {chose}. "
+                         "To choose another, pass --object ID (object_id=ID)"
                          + (f" or name a relation: {hint}" if hint else ""))
         else:
             notes.append(f"target: {target} ({_how(how, found, r)})")
@@ -166,6 +173,8 @@ def _how(how: str, found, r) -> str:
         "object_id": "given by --object (object_id)",
         "adm peak": "the text names no object of this room: the object the ADM's map lights most "
                     "where it is strongest",
+        "wander": "the text names no object of this room: drawn with the seed among the objects "
+                  "with free floor around them",
     }.get(how, how)
 
 

@@ -29,13 +29,20 @@ from scipy.spatial import cKDTree
 
 from jaxmotion.motion.planner import BODY_TOP, CELL, PlanningError, plan_path
 
-__all__ = ["PointGrid", "approach_point", "free_graph", "point_grid", "scene_path"]
+__all__ = ["SIT_REACH", "WALK_REACH", "WALK_WIDER", "PointGrid", "approach_area",
+           "approach_point", "free_graph", "point_grid", "scene_path"]
 
 #: Body radius a walking path keeps from obstacles (m); the ends may come closer.
 WALK_RADIUS = 0.30
 #: Clearance allowed within ``END_ZONE`` of a path's ends (an approach to a seat).
 END_RADIUS = 0.12
 END_ZONE = 0.6
+#: How far from its object (m) a walk before a sit or lie ends.
+SIT_REACH = (0.5, 1.0)
+#: How far from its object a walk ends (m).
+WALK_REACH = (0.3, 0.6)
+#: How far out (m) a walk's end may move when nothing within WALK_REACH is free or reachable.
+WALK_WIDER = (1.0, 1.5)
 
 
 @dataclass(frozen=True)
@@ -104,6 +111,46 @@ def point_grid(xyz, instance=None, *, exclude=(), low: float = 0.1, high: float 
     return PointGrid(origin, clr, grid.obstacles, grid.floor, grid.floor_gap)
 
 
+def _approach_cells(grid: PointGrid, target_xy, reach, radius: float, front):
+    """The cells a body may end an approach to the object with points ``target_xy [M,2]`` on:
+    ``(goal [NX,NY] bool: free and within reach, ahead [NX,NY] bool or None: in front of the
+    object's front face)`` (see :func:`approach_point`)."""
+    target_xy = np.asarray(target_xy, float).reshape(-1, 2)
+    if not len(target_xy):
+        raise PlanningError("the target has no points")
+    # only the cells within reach of the object's box can be goals
+    (i0, j0), (i1, j1) = (grid.index(target_xy.min(0)[None] - reach[1] - CELL)[0],
+                          grid.index(target_xy.max(0)[None] + reach[1] + CELL)[0] + 1)
+    ij = np.stack(np.meshgrid(np.arange(i0, i1), np.arange(j0, j1), indexing="ij"), -1)
+    centres = grid.centers(ij.reshape(-1, 2))
+    d_tgt = cKDTree(target_xy).query(centres, distance_upper_bound=reach[1] + 1e-9)[0]
+    near = ((grid.clearance[i0:i1, j0:j1].ravel() >= radius) & (d_tgt >= reach[0])
+            & (d_tgt <= reach[1]))
+    goal = np.zeros(grid.clearance.shape, bool)
+    goal[i0:i1, j0:j1] = near.reshape(i1 - i0, j1 - j0)
+    ahead = None
+    if front is not None and np.linalg.norm(np.asarray(front, float)[:2]) > 1e-6:
+        f = np.asarray(front, float)[:2] / np.linalg.norm(np.asarray(front, float)[:2])
+        nx, ny = grid.clearance.shape
+        every = grid.centers(np.stack(np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij"),
+                                      -1).reshape(-1, 2))
+        ahead = ((every - target_xy.mean(0)) @ f).reshape(nx, ny) > (
+            (target_xy - target_xy.mean(0)) @ f).max()
+    return goal, ahead
+
+
+def approach_area(grid: PointGrid, target_xy, *, reach: tuple[float, float] = WALK_REACH,
+                  radius: float = END_RADIUS, front=None) -> float:
+    """How much free floor (m²) a body has to end an approach to the object with points
+    ``target_xy [M,2]`` on: the free cells (clearance ≥ ``radius``) within ``reach`` of it,
+    those in front of its ``front`` face when there are any (as :func:`approach_point` takes
+    them, without a start); 0 for an object hemmed in on every side."""
+    goal, ahead = _approach_cells(grid, target_xy, reach, radius, front)
+    if ahead is not None and (goal & ahead).any():
+        goal &= ahead
+    return float(goal.sum()) * CELL * CELL
+
+
 def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, float] = (0.3, 0.6),
                    radius: float = END_RADIUS, front=None) -> np.ndarray:
     """Where a walk from ``start`` (xy) to the object with points ``target_xy [M,2]`` ends:
@@ -112,20 +159,13 @@ def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, flo
     ``front`` (the object's facing, a 2-D or 3-D vector, e.g. a chair's): only cells in front
     of the object's front face count, while one of them can be reached. Raises
     :class:`PlanningError` when none is free or none is reachable."""
-    target_xy = np.asarray(target_xy, float).reshape(-1, 2)
-    if not len(target_xy):
-        raise PlanningError("the target has no points")
-    nx, ny = grid.clearance.shape
-    centres = grid.centers(np.stack(np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij"),
-                                    -1).reshape(-1, 2))
-    d_tgt = cKDTree(target_xy).query(centres)[0].reshape(nx, ny)
-    free = grid.clearance >= radius
-    goal = free & (d_tgt >= reach[0]) & (d_tgt <= reach[1])
+    goal, ahead = _approach_cells(grid, target_xy, reach, radius, front)
     if not goal.any():
         raise PlanningError(f"no free place within {reach[1]} m of the target for a body of "
                             f"radius {radius} m (is the object against walls on every side?)")
     from scipy.sparse.csgraph import dijkstra
 
+    free = grid.clearance >= radius
     graph, cell_of = free_graph(free)
     s = tuple(int(v) for v in grid.index(np.asarray(start, float)[None])[0])
     if not free[s]:  # from a seat: the nearest free cell
@@ -135,12 +175,8 @@ def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, flo
     reach_cost = np.full(free.shape, np.inf)
     reach_cost[free] = dist
     reach_cost[~goal] = np.inf
-    if front is not None and np.linalg.norm(np.asarray(front, float)[:2]) > 1e-6:
-        f = np.asarray(front, float)[:2] / np.linalg.norm(np.asarray(front, float)[:2])
-        ahead = ((centres - target_xy.mean(0)) @ f).reshape(nx, ny) > (
-            (target_xy - target_xy.mean(0)) @ f).max()
-        if np.isfinite(reach_cost[ahead]).any():
-            reach_cost[~ahead] = np.inf
+    if ahead is not None and np.isfinite(reach_cost[ahead]).any():
+        reach_cost[~ahead] = np.inf
     best = np.unravel_index(np.argmin(reach_cost), free.shape)
     if not np.isfinite(reach_cost[best]):
         raise PlanningError("no free place near the target can be reached from the start: the "

@@ -12,9 +12,9 @@ makes the motion with the object-centric models, step after step, each starting 
   (:mod:`jaxmotion.diffusion.anchor_guidance`; its horizontal offset grows from the joined
   frames to the anchor, so it never moves them; join guidance makes the model's path continue
   from them). A sit or lie more than :data:`NEAR` from the person first walks to
-  :data:`SIT_REACH` of it (in front of it when the object has a ``front``), where the models'
-  own walk-in-and-sit takes over: close, so that the model's path (which sees obstacles only
-  through 0.5 m voxels) has little room to cross furniture.
+  :data:`~jaxmotion.planning.paths.SIT_REACH` of it (in front of it when the object has a
+  ``front``), where the models' own walk-in-and-sit takes over: close, so that the model's
+  path (which sees obstacles only through 0.5 m voxels) has little room to cross furniture.
 - **walk** to X: a path on the scene's points (:mod:`jaxmotion.planning.paths`) from where the
   person stands to the nearest free place within reach of X, timed by a human speed profile
   and turned to face X at the end (:mod:`jaxmotion.planning.trajectory`); the completion model
@@ -53,13 +53,8 @@ SIT_BLEND = 0
 #: are the ones that get up in time).
 CANDIDATES = 4
 #: A sit or lie farther than this (m, pelvis to the nearest point of the object) walks first,
-#: to a place :data:`SIT_REACH` from it.
+#: to a place :data:`~jaxmotion.planning.paths.SIT_REACH` from it.
 NEAR = 1.2
-SIT_REACH = (0.5, 1.0)
-#: How far from its object a walk step ends (m).
-WALK_REACH = (0.3, 0.6)
-#: How far out (m) a walk's end may move when nothing within WALK_REACH is free or reachable
-WALK_WIDER = (1.0, 1.5)
 ACTIONS = ("walk", "sit", "stand_up", "lie")
 _STAND_UP = 2  # its index in jaxmotion.models.object_centric.ACTION_CLASSES
 _TAKES = {"sit": SEAT_CATEGORIES, "stand_up": SEAT_CATEGORIES, "lie": LIE_CATEGORIES}
@@ -195,11 +190,11 @@ def choose(joints, points, target, others, anchor_first):
 
 def _goal(grid, scene, obj, start, action):
     """Where a walk from ``start`` (xy) for ``action`` on ``obj`` ends: within reach of it
-    (:data:`SIT_REACH` before a sit or lie), in front of it when it has a ``front``. A walk
-    to an object hemmed in by furniture ends at the nearest free place farther out
-    (:data:`WALK_WIDER`)."""
+    (:data:`~jaxmotion.planning.paths.SIT_REACH` before a sit or lie), in front of it when it
+    has a ``front``. A walk to an object hemmed in by furniture ends at the nearest free place
+    farther out (:data:`~jaxmotion.planning.paths.WALK_WIDER`)."""
     from jaxmotion.motion.planner import PlanningError
-    from jaxmotion.planning.paths import approach_point
+    from jaxmotion.planning.paths import SIT_REACH, WALK_REACH, WALK_WIDER, approach_point
 
     pts = scene.xyz[scene.instance == obj["id"], :2]
     if action in ("sit", "lie"):

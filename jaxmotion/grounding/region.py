@@ -311,7 +311,8 @@ def tile_centres(lo, hi, size: float) -> list[np.ndarray]:
 
 
 def centre_on_object(obj, lo, hi, size: float) -> np.ndarray:
-    """A square centre on the object's xy box centre, kept inside the room (:func:`clamp_centre`)."""
+    """A square centre on the object's xy box centre, kept inside the room
+    (:func:`clamp_centre`)."""
     c = 0.5 * (np.asarray(obj["bbox_min"][:2]) + np.asarray(obj["bbox_max"][:2]))
     return clamp_centre(c, lo, hi, size)
 

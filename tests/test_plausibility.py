@@ -388,3 +388,43 @@ def test_select_motion_with_feet_keeps_the_planted_feet_among_those_near_the_tar
     assert int(select_motion(cands, *args, return_index=True)[0]) == 1
     assert int(select_motion(cands, *args, feet=True, return_index=True)[0]) == 2
     assert int(select_motion(cands[:, :2], *args, feet=True, return_index=True)[0]) == 1
+
+
+def test_off_floor_counts_a_pelvis_beyond_the_wall_and_select_motion_avoids_it():
+    """A pelvis more than 0.5 m (xy) from every floor point and target point is off the floor
+    (checked against a loop); a walk from beyond the room's wall loses to one on its floor."""
+    from jaxmotion.pipelines.affordance import OFF_FLOOR, off_floor, select_motion
+
+    g = np.arange(0.0, 3.0, 0.1)
+    floor = np.array([[x, y, 0.0] for x in g for y in g], np.float32)  # the room: x, y in [0, 3)
+    seat = np.array([[x, y, 0.45] for x in (2.0, 2.2) for y in (2.0, 2.2)], np.float32)
+    post = np.array([[1.5, 1.3, 0.5], [1.5, 1.3, 1.0]], np.float32)  # a thin obstacle
+    points = np.concatenate([floor, seat, post])  # a scan open to the west: no wall points
+    target = np.r_[np.zeros(len(floor), bool), np.ones(len(seat), bool), np.zeros(2, bool)]
+    t = 30
+    base = np.zeros((t, 22, 3), np.float32)
+    base[:, :, 2] = np.linspace(0.0, 1.6, 22)[None]
+
+    def walk(start, end):
+        m = base.copy()
+        m[:, :, :2] += np.linspace(start, end, t)[:, None, :]
+        return m
+
+    inside = walk([1.0, 1.0], [2.0, 1.6])  # brushes the post for two frames
+    through = walk([-1.2, 1.5], [2.0, 1.6])  # starts 1.2 m beyond the room's edge at x = 0
+    cands = np.stack([through, inside])[None]
+    got = np.asarray(off_floor(jnp.asarray(cands), points[None], target[None]))[0]
+    for m in range(2):  # a loop over frames and points
+        for f in range(t):
+            d = np.hypot(*(points[:, :2] - cands[0, m, f, 0, :2]).T)
+            ground = (points[:, 2] < 0.05) | target
+            assert got[m, f] == (d[ground].min() > OFF_FLOOR)
+    assert not got[1].any() and got[0].sum() == 7  # x < -0.5 m: frames 0-6
+    on_seat = walk([2.1, 2.1], [2.1, 2.1])
+    on_seat[:, 0, :2] = 2.1  # over the seat's points: the target is floor enough
+    assert not np.asarray(off_floor(jnp.asarray(on_seat[None, None]), points[None],
+                                    target[None])).any()
+    avoid = (points[:, 2] > 0.1) & ~target
+    pick = select_motion(jnp.asarray(cands), points[None], target[None], np.ones((1, t), bool),
+                         avoid=avoid[None], return_index=True)
+    assert int(pick[0]) == 1  # 2 frames at the post beat 7 beyond the floor

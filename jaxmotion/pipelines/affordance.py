@@ -41,7 +41,8 @@ from flax import nnx
 from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.diffusion.samplers import SamplerSpec
 
-__all__ = ["AffordancePipeline", "adm_map_one", "adm_maps_one", "select_motion", "take_text"]
+__all__ = ["AffordancePipeline", "adm_map_one", "adm_maps_one", "off_floor", "select_motion",
+           "take_text"]
 
 
 def take_text(text, index):
@@ -448,6 +449,23 @@ class AffordancePipeline:
 GOAL_SLACK = 0.1
 #: A joint closer than this (m) to a point of ``select_motion``'s ``avoid`` touches it.
 AVOID_DISTANCE = 0.05
+#: :func:`off_floor` counts a frame whose pelvis is farther than this (m, horizontally) from
+#: every floor point of the crop (below :data:`FLOOR_Z`) and every point of the target.
+OFF_FLOOR = 0.5
+FLOOR_Z = 0.05
+
+
+def off_floor(motions, points, target):
+    """``[B, M, T]`` bool: the frames of ``motions [B, M, T, 22, 3]`` whose pelvis is where the
+    crop ``points [B, N, 3]`` have no floor: farther than :data:`OFF_FLOOR` (horizontally) from
+    every point below :data:`FLOOR_Z` and from every point of ``target [B, N]`` (a seat or a
+    bed is no floor, yet a body on it is in place). A walk that starts beyond a wall of the
+    room, or out past the square the models see, does; a body on the room's floor does not."""
+    pts = jnp.asarray(points, jnp.float32)
+    pel = jnp.asarray(motions)[:, :, :, 0, :2]  # [B, M, T, 2]
+    sq = jnp.sum((pel[:, :, :, None] - pts[:, None, None, :, :2]) ** 2, axis=-1)  # [B,M,T,N]
+    ground = (pts[:, :, 2] < FLOOR_Z) | jnp.asarray(target, bool)  # [B, N]
+    return jnp.min(jnp.where(ground[:, None, None], sq, jnp.inf), axis=-1) > OFF_FLOOR ** 2
 
 
 def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis_speed=None,
@@ -462,7 +480,8 @@ def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis
     faster than that while another's does not (a walk at a run, beyond the dataset's motions).
     With ``avoid [B, N]`` (points a body must keep out of: furniture that is not the target),
     among the candidates of the best of those tiers the ones with the fewest frames where a
-    joint is within :data:`AVOID_DISTANCE` of such a point compete. With ``feet``, of those,
+    joint is within :data:`AVOID_DISTANCE` of such a point, or the pelvis is off the crop's
+    floor (:func:`off_floor`: beyond a wall), compete. With ``feet``, of those,
     the ones within :data:`GOAL_SLACK` of the closest compete on their feet: the one with the
     fewest frames whose feet slide, hover or sink (:func:`jaxmotion.eval.skating.foot_faults`)
     is kept — closeness is a gate, not the prize, since the anchor guidance already puts
@@ -498,8 +517,8 @@ def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis
         sq = (jnp.sum(j * j, -1)[:, :, None] + jnp.sum(pts * pts, -1)[:, None, :]
               - 2.0 * jnp.einsum("bjc,bnc->bjn", j, pts))
         sq = jnp.where(jnp.asarray(avoid, bool)[:, None, :], sq, jnp.inf)
-        touch = (jnp.min(sq, axis=-1).reshape(motions.shape[:4]) < AVOID_DISTANCE ** 2).any(
-            axis=3) & mask[:, None]
+        touch = ((jnp.min(sq, axis=-1).reshape(motions.shape[:4]) < AVOID_DISTANCE ** 2).any(
+            axis=3) | off_floor(motions, pts, target)) & mask[:, None]
         tier = tier * 1000 + jnp.minimum(jnp.sum(touch, axis=2), 999)
     best_tier = jnp.min(tier, axis=1, keepdims=True)  # only the best tier's candidates compete
     if feet:  # near enough the target, the best-planted feet

@@ -71,10 +71,14 @@ def wander_target(room, objects, seed: int) -> dict | None:
     walls or the floor (:data:`~jaxmotion.constants.PASSABLE`: doors, windows, rugs, ...) only
     when no furniture has free floor around it, the room's structure (walls, floor) never.
     None when nothing has free floor around it (or the scene has no floor)."""
-    for pool in ([o for o in objects if o["category"] not in (*STRUCTURE, *PASSABLE)],
-                 [o for o in objects if o["category"] in PASSABLE]):
-        areas = approach_areas(room, pool) if pool else None
-        if areas is not None and areas.sum() > 0.0:
+    every = [o for o in objects if o["category"] not in STRUCTURE]
+    areas = approach_areas(room, every) if every else None  # one clearance grid for both
+    if areas is None:
+        return None
+    passable = np.array([o["category"] in PASSABLE for o in every])
+    for pool in (~passable, passable):
+        a = np.where(pool, areas, 0.0)
+        if a.sum() > 0.0:
             rng = np.random.default_rng([int(seed), WANDER_TAG])
-            return pool[int(rng.choice(len(pool), p=areas / areas.sum()))]
+            return every[int(rng.choice(len(every), p=a / a.sum()))]
     return None

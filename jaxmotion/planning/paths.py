@@ -114,7 +114,8 @@ def point_grid(xyz, instance=None, *, exclude=(), low: float = 0.1, high: float 
 def _approach_cells(grid: PointGrid, target_xy, reach, radius: float, front):
     """The cells a body may end an approach to the object with points ``target_xy [M,2]`` on:
     ``(goal [NX,NY] bool: free and within reach, ahead [NX,NY] bool or None: in front of the
-    object's front face)`` (see :func:`approach_point`)."""
+    object's front face)`` (see :func:`approach_point`); both are computed only within reach
+    of the object's box, False beyond it."""
     target_xy = np.asarray(target_xy, float).reshape(-1, 2)
     if not len(target_xy):
         raise PlanningError("the target has no points")
@@ -131,11 +132,9 @@ def _approach_cells(grid: PointGrid, target_xy, reach, radius: float, front):
     ahead = None
     if front is not None and np.linalg.norm(np.asarray(front, float)[:2]) > 1e-6:
         f = np.asarray(front, float)[:2] / np.linalg.norm(np.asarray(front, float)[:2])
-        nx, ny = grid.clearance.shape
-        every = grid.centers(np.stack(np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij"),
-                                      -1).reshape(-1, 2))
-        ahead = ((every - target_xy.mean(0)) @ f).reshape(nx, ny) > (
-            (target_xy - target_xy.mean(0)) @ f).max()
+        ahead = np.zeros(grid.clearance.shape, bool)  # no goal lies outside the window
+        ahead[i0:i1, j0:j1] = (((centres - target_xy.mean(0)) @ f) > (
+            (target_xy - target_xy.mean(0)) @ f).max()).reshape(i1 - i0, j1 - j0)
     return goal, ahead
 
 
@@ -151,7 +150,7 @@ def approach_area(grid: PointGrid, target_xy, *, reach: tuple[float, float] = WA
     return float(goal.sum()) * CELL * CELL
 
 
-def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, float] = (0.3, 0.6),
+def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, float] = WALK_REACH,
                    radius: float = END_RADIUS, front=None) -> np.ndarray:
     """Where a walk from ``start`` (xy) to the object with points ``target_xy [M,2]`` ends:
     among the free cells (clearance ≥ ``radius``) whose distance to the object is within

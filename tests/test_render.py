@@ -182,6 +182,52 @@ def test_compiled_surfels_are_the_numpy_rasterizers():
     assert (want_ids >= 0).mean() > 0.3
 
 
+@pytest.mark.parametrize("layout", ["room", "clustered", "sparse"])
+def test_splat_radii_are_the_brute_force_neighbour_distances(layout):
+    """kernels.kth_distances: each query's distance to its 6th-nearest point (itself the 0th;
+    duplicates count), by a full sort of every distance; beyond the cap it may stop at the cap
+    (the radii are clipped there)."""
+    from jaxmotion.render import kernels
+
+    rng = np.random.default_rng(5)
+    if layout == "room":  # a floor, a wall and a box's top, as a scan samples them
+        pts = np.r_[np.c_[rng.uniform(0, 1.5, (900, 2)), np.zeros(900)],
+                    np.c_[rng.uniform(0, 1.5, 300), np.zeros(300), rng.uniform(0, 0.8, 300)],
+                    np.c_[rng.uniform(0.5, 1.0, (200, 2)), np.full(200, 0.45)]]
+    elif layout == "clustered":  # dense clumps far apart, and exact duplicates
+        pts = np.r_[rng.normal(0, 0.01, (300, 3)), rng.normal(5, 0.02, (300, 3))]
+        pts = np.r_[pts, pts[:40]]
+    else:  # neighbours mostly farther than the cap, over a wide box
+        pts = rng.uniform(-20, 20, (400, 3))
+    queries = rng.choice(len(pts), 150, replace=False)
+    cap = 0.10
+    got = kernels.kth_distances(pts, queries, 6, cap)
+    d = np.sort(np.linalg.norm(pts[queries, None] - pts[None], axis=-1), axis=1)[:, 6]
+    near = d < cap
+    np.testing.assert_allclose(got[near], d[near], rtol=1e-12, atol=0)
+    assert np.all(got[~near] >= cap - 1e-12)
+    np.testing.assert_allclose(np.minimum(got, cap), np.minimum(d, cap), rtol=1e-12)
+    assert (~near).all() if layout == "sparse" else near.mean() > 0.6
+
+
+def test_shadow_filters_are_scipys():
+    """The shadow map's blur and minimum (scene.gaussian_filter, scene.minimum_filter) give
+    ``scipy.ndimage``'s answers (zero outside; edges extended)."""
+    from scipy import ndimage
+
+    from jaxmotion.render.scene import gaussian_filter, minimum_filter
+
+    rng = np.random.default_rng(6)
+    for shape, sigma in (((61, 47), 2.25), ((30, 41), 3.5), ((4, 9), 3.5)):
+        a = (rng.random(shape) > 0.8).astype(np.float32)
+        np.testing.assert_allclose(gaussian_filter(a, sigma),
+                                   ndimage.gaussian_filter(a, sigma, mode="constant"),
+                                   rtol=1e-6, atol=1e-7)
+        low = np.where(rng.random(shape) > 0.6, rng.random(shape), np.inf).astype(np.float32)
+        np.testing.assert_array_equal(minimum_filter(low, 5),
+                                      ndimage.minimum_filter(low, size=5, mode="nearest"))
+
+
 def test_compiled_shading_and_compositing_are_the_numpy_formulas():
     """vertex_colours: area-weighted vertex normals (the exporters' vertex_normals) lit by
     the body's lights; compose: each pixel the mean of its 2 × 2 samples, a body sample the

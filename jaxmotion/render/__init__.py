@@ -86,20 +86,16 @@ def __getattr__(name: str):
 
 
 def prepare_in_background() -> threading.Thread:
-    """Start a daemon thread that imports numba and the SciPy parts the renderer uses and
-    loads the compiled kernels (:func:`jaxmotion.render.kernels.warm_up`), so that a
-    rendering started later finds them ready (``jaxmotion generate`` calls it before
-    sampling: ~0.5–1 s of a fresh process's start-up off the video). The thread imports no
-    other jaxmotion module; a failure there is left for the rendering itself to meet."""
+    """Start a daemon thread that imports numba and loads the compiled kernels
+    (:func:`jaxmotion.render.kernels.warm_up`), so that a rendering started later finds them
+    ready (``jaxmotion generate`` calls it before sampling: ~0.5–1 s of a fresh process's
+    start-up off the video). The thread imports no other jaxmotion module; a failure there is
+    left for the rendering itself to meet."""
 
     def work():
         with contextlib.suppress(Exception):  # the same error comes again where it matters
-            import scipy.ndimage  # the shadows' filters
-            import scipy.spatial  # the splat sizes
-
             from jaxmotion.render import kernels
 
-            del scipy
             kernels.warm_up()
 
     thread = threading.Thread(target=work, name="jaxmotion-render-prepare", daemon=True)

@@ -18,6 +18,8 @@ that wins each are the reference's:
 - :func:`shadow_pixels`: the contact and drop shadows of a ``ShadowMap`` on the room's
   pixels inside a box (each pixel's world point from its depth);
 - :func:`raster_surfels`: the room's disc splats into a depth + id buffer (once per clip);
+- :func:`kth_distances`: each splat's distance to its 6th-nearest point (its radius; a grid
+  search, ``scipy.spatial.cKDTree``'s answer);
 - :func:`to_uint8`: a float picture in [0, 1] to bytes.
 
 Every kernel releases the GIL (``nogil``), so the frames that
@@ -34,7 +36,7 @@ import threading
 import numba
 import numpy as np
 
-__all__ = ["BUCKET_SIDES", "EDGE_EPS", "compose", "project", "raster_surfels",
+__all__ = ["BUCKET_SIDES", "EDGE_EPS", "compose", "kth_distances", "project", "raster_surfels",
            "raster_triangles", "shadow_pixels", "skin", "to_uint8", "vertex_colours", "warm_up"]
 
 _JIT = {"cache": True, "nogil": True, "boundscheck": False}
@@ -396,6 +398,77 @@ def raster_surfels(centre, normal, radius, focal, cx, cy, depth, ids, near=1e-2,
                     ids[row, col] = i
 
 
+def kth_distances(points, queries, rank, cap):
+    """``[Q]`` float64: the distance from each of ``queries [Q]`` (indices into ``points
+    [N, 3]`` float64) to its ``rank``-th nearest point, the point itself counting as the 0th
+    (``cKDTree(points).query(points[queries], k=rank + 1)[0][:, rank]``); a distance of
+    ``cap`` or more may come back as ``cap`` (the search stops there). Points are binned in a
+    grid of cubes, searched shell by shell around each query's cube until no point outside
+    can be nearer than the ``rank``-th found."""
+    points = np.ascontiguousarray(points, np.float64)
+    queries = np.ascontiguousarray(queries, np.int64)
+    out = np.empty(len(queries), np.float64)
+    if len(queries) == 0:
+        return out
+    lo = points.min(0)
+    side = float(cap) / 2
+    span = points.max(0) - lo
+    while True:  # a coarser grid for a big space than one cell per point or so
+        dims = (span // side).astype(np.int64) + 1
+        if int(np.prod(dims)) <= max(8 * len(points), 1 << 16):
+            break
+        side *= 1.5
+    cell = ((points - lo) // side).astype(np.int64)
+    key = (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]
+    order = np.argsort(key, kind="stable")
+    start = np.zeros(int(np.prod(dims)) + 1, np.int64)
+    np.cumsum(np.bincount(key, minlength=len(start) - 1), out=start[1:])
+    _kth_distances(points, order, start, lo, side, dims, queries, int(rank), float(cap), out)
+    return out
+
+
+@numba.njit(**_JIT)
+def _kth_distances(points, order, start, lo, side, dims, queries, rank, cap, out):
+    """:func:`kth_distances`' search (``order``: point indices sorted by cube; ``start``: each
+    cube's first place in it)."""
+    best = np.empty(rank + 1, np.float64)
+    for q in range(queries.shape[0]):
+        p = queries[q]
+        px, py, pz = points[p, 0], points[p, 1], points[p, 2]
+        ci = int((px - lo[0]) // side)
+        cj = int((py - lo[1]) // side)
+        ck = int((pz - lo[2]) // side)
+        best[:] = np.inf
+        r = 0
+        while True:
+            for i in range(max(ci - r, 0), min(ci + r, dims[0] - 1) + 1):
+                for j in range(max(cj - r, 0), min(cj + r, dims[1] - 1) + 1):
+                    for k in range(max(ck - r, 0), min(ck + r, dims[2] - 1) + 1):
+                        if max(abs(i - ci), abs(j - cj), abs(k - ck)) != r:
+                            continue  # searched in an earlier shell
+                        c = (i * dims[1] + j) * dims[2] + k
+                        for m in range(start[c], start[c + 1]):
+                            o = order[m]
+                            dx = points[o, 0] - px
+                            dy = points[o, 1] - py
+                            dz = points[o, 2] - pz
+                            d2 = dx * dx + dy * dy + dz * dz
+                            if d2 < best[rank]:
+                                n = rank
+                                while n > 0 and best[n - 1] > d2:
+                                    best[n] = best[n - 1]
+                                    n -= 1
+                                best[n] = d2
+            reach = r * side  # no point outside the shells searched is nearer than this
+            if best[rank] <= reach * reach:
+                out[q] = math.sqrt(best[rank])
+                break
+            if reach >= cap:
+                out[q] = min(math.sqrt(best[rank]), cap)
+                break
+            r += 1
+
+
 @numba.njit(**_JIT)
 def to_uint8(rgb, out):
     """``out [H, W, 3]`` uint8 = ``rgb [H, W, 3]`` float32 · 255, rounded, clipped."""
@@ -444,4 +517,5 @@ def warm_up() -> None:
                       np.array([0, 0, 2, 2], np.int64), np.zeros(2), np.ones(2), f32(1.0),
                       np.zeros(2), 0.02, grid, grid, grid)
         to_uint8(rgb, np.empty((4, 4, 3), np.uint8))
+        kth_distances(np.eye(3), np.arange(3), 2, 0.1)
         _warmed = True

@@ -28,14 +28,15 @@ standing tall), plus a wide soft drop shadow on the floor.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from jaxmotion.render import kernels
 from jaxmotion.render.camera import Camera
 
 __all__ = ["FLOOR_RGB", "HIGHLIGHT", "BackgroundPicture", "CutawayHoles", "SceneLayer",
-           "ShadowMap",
-           "light_direction"]
+           "ShadowMap", "gaussian_filter", "light_direction", "minimum_filter"]
 
 HIGHLIGHT = np.array([1.0, 0.62, 0.05])  # the target object's tint (amber)
 FLOOR_RGB = np.array([0.86, 0.855, 0.84])
@@ -45,9 +46,10 @@ _CUT_ABOVE = 0.5  # metres above the motion's top joint
 _CUT_NEAR_Z = 0.12  # points lower than this are never cut away (the floor)
 _EDL_STRENGTH = 350.0
 _EDL_MAX = 0.6  # the darkest outline keeps 40 % of the colour
-_FLOOR_FADE = (4.0, 7.0)
+_FLOOR_FADE = (4.0, 7.0)  # metres from the target: the floor fades to white between these
 _CUT_SHARE = 0.05  # an object with more of its points in front of the body is left out whole
-_BODY_RADIUS = 0.22  # metres around joints and bone midpoints: the body for the cutaway  # metres from the target: the floor fades to white between these
+_SPLAT_MIN, _SPLAT_MAX = 0.004, 0.10  # metres: the splat radii's bounds
+_BODY_RADIUS = 0.22  # metres around joints and bone midpoints: the body for the cutaway
 
 
 def light_direction(cam: Camera) -> np.ndarray:
@@ -114,16 +116,14 @@ class SceneLayer:
         self.floor = floor
         # splat radii: 2 cm for a handful of points, else found when first drawn (radii)
         self._radius = np.full(n, 0.02 if n < 8 else np.nan)
-        self._tree = None
         normal = np.zeros((n, 3)) if normal is None else np.asarray(normal, np.float64)
         self.oriented = np.abs(normal).sum(1) > 0  # the scene's own normals: facing known
         unknown = np.abs(normal).sum(1) == 0
-        if n >= 8 and unknown.any():
+        if n >= 8 and unknown.any():  # a scan without normals
             from scipy.spatial import cKDTree
 
-            self._tree = cKDTree(self.xyz)
-            d, nb = self._tree.query(self.xyz, k=13)
-            self._radius = np.clip(d[:, 6], 0.004, 0.10)
+            d, nb = cKDTree(self.xyz).query(self.xyz, k=13)
+            self._radius = np.clip(d[:, 6], _SPLAT_MIN, _SPLAT_MAX)
             normal = normal.copy()
             normal[unknown] = _pca_normals(self.xyz, nb[unknown])
             walls = _wall_points(self.xyz, normal) & unknown
@@ -148,12 +148,8 @@ class SceneLayer:
         r = self._radius[sel]
         todo = np.isnan(r)
         if todo.any():
-            from scipy.spatial import cKDTree
-
-            if self._tree is None:
-                self._tree = cKDTree(self.xyz)
-            d, _ = self._tree.query(self.xyz[sel[todo]], k=7)
-            r[todo] = np.clip(d[:, 6], 0.004, 0.10)
+            d = kernels.kth_distances(self.xyz, sel[todo], 6, _SPLAT_MAX)
+            r[todo] = np.clip(d, _SPLAT_MIN, _SPLAT_MAX)
             self._radius[sel[todo]] = r[todo]
         return r
 
@@ -354,8 +350,6 @@ class ShadowMap:
     """
 
     def __init__(self, vertices: np.ndarray, light: np.ndarray, cell: float = 0.02):
-        from scipy.ndimage import gaussian_filter, minimum_filter
-
         v = np.asarray(vertices, np.float32)
         self.cell = cell
         # the drop shadow: vertices slid along the light onto the floor
@@ -374,14 +368,13 @@ class ShadowMap:
         low = np.full(gx * gy, np.inf, np.float32)
         np.minimum.at(low, c, v[:, 2])
         occupied = np.isfinite(low).reshape(gx, gy)
-        low = minimum_filter(low.reshape(gx, gy), size=5, mode="nearest")
+        low = minimum_filter(low.reshape(gx, gy), 5)
         self.low = np.where(np.isfinite(low), low, np.float32(1e3))
-        self.cover = np.minimum(gaussian_filter(occupied.astype(np.float32), 0.045 / cell,
-                                                mode="constant") * 1.6, 1.0)
+        self.cover = np.minimum(gaussian_filter(occupied.astype(np.float32), 0.045 / cell)
+                                * 1.6, 1.0)
         dc = np.zeros(gx * gy, np.float32)
         dc[cells(drop)] = 1.0
-        self.drop = np.minimum(gaussian_filter(dc.reshape(gx, gy), 0.07 / cell,
-                                               mode="constant") * 1.4, 1.0)
+        self.drop = np.minimum(gaussian_filter(dc.reshape(gx, gy), 0.07 / cell) * 1.4, 1.0)
         # the box (world xy) outside which nothing darkens
         some = np.argwhere((self.cover > 0.01) | (self.drop > 0.01))
         if len(some):
@@ -414,3 +407,40 @@ class ShadowMap:
                               np.asarray(lo, np.float64), np.asarray(hi, np.float64),
                               np.float32(top), self.origin, float(self.cell), self.low,
                               self.cover, self.drop)
+
+
+def minimum_filter(a: np.ndarray, size: int) -> np.ndarray:
+    """The minimum over the ``size × size`` window centred on each cell of ``a [H, W]``, the
+    edges extended (``scipy.ndimage.minimum_filter(a, size, mode="nearest")``, odd ``size``)."""
+    h, w = a.shape
+    padded = np.pad(a, size // 2, mode="edge")
+    rows = padded[:h].copy()
+    for i in range(1, size):
+        np.minimum(rows, padded[i:i + h], out=rows)
+    out = rows[:, :w].copy()
+    for i in range(1, size):
+        np.minimum(out, rows[:, i:i + w], out=out)
+    return out
+
+
+def gaussian_filter(a: np.ndarray, sigma: float) -> np.ndarray:
+    """``a [H, W]`` float32 blurred by a Gaussian of ``sigma`` cells, zero outside
+    (``scipy.ndimage.gaussian_filter(a, sigma, mode="constant")``: the kernel truncated at
+    4 σ and normalised, one axis after the other, each pass in float64 kept in float32)."""
+    h, w = a.shape
+    rows = (_blur_matrix(h, float(sigma)) @ a.astype(np.float64)).astype(np.float32)
+    return (rows.astype(np.float64) @ _blur_matrix(w, float(sigma)).T).astype(np.float32)
+
+
+@functools.lru_cache(maxsize=64)
+def _blur_matrix(n: int, sigma: float) -> np.ndarray:
+    """``[n, n]``: row i holds the truncated Gaussian's weights around cell i."""
+    radius = int(4.0 * sigma + 0.5)
+    x = np.arange(-radius, radius + 1)
+    weights = np.exp(-0.5 / (sigma * sigma) * x * x)
+    weights /= weights.sum()
+    offset = np.arange(n)[None, :] - np.arange(n)[:, None]
+    near = np.abs(offset) <= radius
+    out = np.zeros((n, n))
+    out[near] = weights[offset[near] + radius]
+    return out

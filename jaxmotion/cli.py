@@ -256,14 +256,13 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         text = "walk along the path" if args.text is None else args.text
     print(f"generating {options.samples} motion(s) for {text!r} in {args.scene} ...",
           file=sys.stderr, flush=True)
+    prepare = None
     if args.video != "none":  # the renderer's kernels load while the motion is sampled
-        from jaxmotion.render import prepare_in_background
-
-        prepare_in_background()
+        from jaxmotion.render import prepare_in_background as prepare
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
         res = generate(args.scene, text, options=options, progress=True, plan=args.plan,
-                       trajectory=trajectory)
+                       trajectory=trajectory, meanwhile=prepare)
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
     t1 = time.perf_counter()

@@ -95,7 +95,8 @@ def _check_models(opts: GenerateOptions) -> _Models:
 
 
 def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None = None,
-             progress: bool = False, plan=None, trajectory=None, **overrides) -> Generation:
+             progress: bool = False, plan=None, trajectory=None, meanwhile=None,
+             **overrides) -> Generation:
     """Generate motions of a person doing ``text`` in ``scene``.
 
     Args:
@@ -109,21 +110,23 @@ def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None
       progress: print the stages with their times (to stderr).
       plan, trajectory: a story (steps on object ids, or their JSON file; a text of several
         steps is one too) or a ground path to follow (``[T, 2]`` at 30 fps) (:mod:`.planning`).
+      meanwhile: called (no arguments) once checked and grounded, as the models start to
+        sample: the command line starts loading the video's renderer there.
     Raises:
       GenerateError: bad text, scene, object id, options or checkpoints (the message names
         the fix), before any model is loaded.
     """
     opts = GenerateOptions.merged(options, **overrides)
     from jaxmotion.planning.control import planned_generation  # a story, or a path to follow
-    if (told := planned_generation(scene, text, opts, progress, plan=plan,
-                                   trajectory=trajectory)) is not None:
+    if (told := planned_generation(scene, text, opts, progress, plan=plan, trajectory=trajectory,
+                                   meanwhile=meanwhile)) is not None:
         return told
     from jaxmotion.text.condition import check_text
     models = _check_models(opts)
-    return _run(scene, check_text(text), opts, models, progress)
+    return _run(scene, check_text(text), opts, models, progress, meanwhile or (lambda: None))
 
 
-def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: bool):
+def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: bool, meanwhile):
     import jax
 
     from jaxmotion._jax_setup import enable_compilation_cache, seed_key_data
@@ -196,6 +199,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         if not models.room_view:
             lap("region")
     understood = explain(room, instruction, chosen, how, opts, echo=progress)  # warns, too
+    meanwhile()
 
     from jaxmotion.pipelines.checkpoints import pick_pipeline
     pipeline = pick_pipeline(opts.pipeline, models.files, chosen)  # needs a target or not
@@ -243,9 +247,8 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
 
 def _synthesize(room, centre, chosen, anchor_first: bool, emb, opts: GenerateOptions,
                 models: _Models, view, root, samplers, aot_dir, versions):
-    """The K motions in the scene frame for the square at ``centre``: ``(joints [K,T,22,3],
-    maps [K,N,6], (crop point indices, rotation, shift), excluded ids, maps drawn, motions
-    drawn)`` per sample."""
+    """The K motions for the square at ``centre``: ``(joints [K,T,22,3] in the scene frame,
+    maps [K,N,6], (crop indices, rotation, shift), excluded ids, maps, motions drawn)``."""
     import jax
 
     from jaxmotion.compiled import cached_call, digest
@@ -256,8 +259,7 @@ def _synthesize(room, centre, chosen, anchor_first: bool, emb, opts: GenerateOpt
     k, room_view = opts.samples, models.room_view
     pick, pts, shift, rot = generate_crop(room.xyz, centre, models.spec, opts.seed)
     colors = model_colors(room.rgb[pick])
-    # once the target is known (given, or found with the scene graph's help), the other
-    # objects of its class are left out of the ADM's map
+    # once the target is known (given, or found by the scene graph), its class mates are left out
     excluded = (same_class_others(object_table(room), chosen)
                 if opts.object_id is not None or opts.grounding != "adm" else [])
     n_cand = opts.adm_candidates if chosen is not None and not room_view else 1
@@ -276,8 +278,7 @@ def _synthesize(room, centre, chosen, anchor_first: bool, emb, opts: GenerateOpt
     else:
         args = (*args, tile(np.isin(room.instance[pick], excluded)))
     args = (*args, on_target, np.full(k, anchor_first))
-    # the maps of a known target come from the ADM told it; else from the text-only one
-    main_adm = models.adm if chosen is not None else models.text_adm
+    main_adm = models.adm if chosen is not None else models.text_adm  # else: text-only maps
 
     def build_sampler():
         pipe = models.pipeline(main_adm)
@@ -290,10 +291,9 @@ def _synthesize(room, centre, chosen, anchor_first: bool, emb, opts: GenerateOpt
             main(kd), p, c, e, m, adm=adm_sampler, amdm=amdm_sampler, exclude=x, target=t,
             candidates=n_cand, motion_candidates=n_mot, anchor_first=f)
 
-    res = cached_call(aot_dir, "sample", digest(versions, adm_sampler, amdm_sampler, n_cand,
-                                                n_mot, main_adm, models.amdm),
-                      build_sampler, args)
-    res = jax.device_get(res)
+    res = jax.device_get(cached_call(aot_dir, "sample", digest(
+        versions, adm_sampler, amdm_sampler, n_cand, n_mot, main_adm, models.amdm),
+        build_sampler, args))
     joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
     aff = np.asarray(res.get("affordance", np.zeros((k, len(pick), 6))), np.float32)
     return joints, aff, (pick, rot, shift), (() if room_view else excluded), n_cand, n_mot

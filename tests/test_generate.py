@@ -84,8 +84,11 @@ def test_shapes_frame_and_fit(result):
 
 
 def test_same_seed_same_output_and_seeds_differ(result, ckpt):
+    called = []  # meanwhile: once, as the sampling starts
     again = jaxmotion.generate("demo", "sit on the chair next to the table", samples=2, seed=3,
-                               checkpoints=ckpt, **FAST)  # now from the cached exported programs
+                               checkpoints=ckpt, meanwhile=lambda: called.append(1),
+                               **FAST)  # now from the cached exported programs
+    assert called == [1]
     np.testing.assert_array_equal(again.joints, result.joints)
     np.testing.assert_array_equal(again.smplx["body_pose"], result.smplx["body_pose"])
     assert not np.array_equal(result.joints[0], result.joints[1])
@@ -113,8 +116,10 @@ def test_same_seed_same_output_and_seeds_differ(result, ckpt):
 ])
 def test_bad_input_is_a_clear_error(ckpt, kwargs, match):
     args = {"scene": "demo", "text": "sit on the chair", **FAST, **kwargs}
+    late = lambda: pytest.fail("meanwhile is called only once the input is known to be good")
     with pytest.raises(GenerateError, match=match):
-        jaxmotion.generate(args.pop("scene"), args.pop("text"), checkpoints=ckpt, **args)
+        jaxmotion.generate(args.pop("scene"), args.pop("text"), checkpoints=ckpt, meanwhile=late,
+                           **args)
 
 
 @pytest.mark.slow  # ~50 s on 2 cores: two more generate calls

@@ -194,11 +194,12 @@ def control_generation(scene, text: str, trajectory, opts, progress: bool = Fals
 
 
 def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=None,
-                       trajectory=None):
+                       trajectory=None, meanwhile=None):
     """``generate`` with a ``plan`` (:func:`~jaxmotion.planning.story.story_generation`), a
     ``trajectory`` (:func:`control_generation`), or a ``text`` that tells a story of several
     steps (:func:`~jaxmotion.planning.steps.plan_from_text`); None when it is none of those
-    (one instruction: ``generate`` makes one clip)."""
+    (one instruction: ``generate`` makes one clip). ``meanwhile`` (no arguments) is called
+    once the request is known to be one of those and its options fit, before any work."""
     import warnings
 
     from jaxmotion.planning.steps import is_story
@@ -214,6 +215,8 @@ def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=N
         warnings.warn(f"a story or a followed path is one motion: samples={opts.samples} is "
                       "not used (run again with other seeds for others)", UserWarning,
                       stacklevel=3)
+    if meanwhile is not None:
+        meanwhile()
     if trajectory is not None:
         return control_generation(scene, text, trajectory, opts, progress)
     from jaxmotion.planning.story import story_generation

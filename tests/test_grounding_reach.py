@@ -12,7 +12,8 @@ from jaxmotion.data.crop import CropSpec
 from jaxmotion.grounding import find_region
 from jaxmotion.grounding.reach import approach_areas, most_reachable, wander_target
 from jaxmotion.motion.planner import BODY_TOP, CELL
-from jaxmotion.planning.paths import END_RADIUS, SIT_REACH, WALK_REACH, approach_area, point_grid
+from jaxmotion.planning.paths import (END_RADIUS, SIT_REACH, WALK_REACH, approach_area,
+                                      floor_points, nearest_distances, point_grid)
 
 STEP = 0.06  # point spacing of the test rooms (m)
 
@@ -100,14 +101,41 @@ def two_stools():
 @pytest.mark.parametrize("obj_id, reach, front", [(1, WALK_REACH, None), (2, WALK_REACH, None),
                                                   (1, SIT_REACH, None), (5, SIT_REACH, (1, 0)),
                                                   (5, WALK_REACH, (0, 1))])
-def test_approach_area_matches_brute_force(obj_id, reach, front):
+@pytest.mark.parametrize("grids", [point_grid, floor_points])
+def test_approach_area_matches_brute_force(obj_id, reach, front, grids):
     room = two_stools()
-    grid = point_grid(room.xyz, room.instance)
+    grid = grids(room.xyz, room.instance)
     target = room.xyz[room.instance == obj_id, :2]
     got = approach_area(grid, target, reach=reach,
                         front=None if front is None else [*front, 0.0])
     want = brute_area(room, obj_id, reach, None if front is None else np.array(front, float))
     assert got == pytest.approx(want, abs=1e-9) and got > 0
+
+
+def test_floor_points_free_cells_are_the_grids():
+    """FloorPoints.free (the points near a window, no tree) marks the cells PointGrid's
+    clearance does, on a room with holes in its floor and points on the cells' edges; and
+    nearest_distances is the brute-force nearest distance within its bound."""
+    rng = np.random.default_rng(3)
+    room = two_stools()
+    keep = ~((room.xyz[:, 2] < 0.05) & (np.abs(room.xyz[:, 0] - 0.9) < 0.25)
+             & (room.xyz[:, 1] > 1.2))  # a hole in the floor
+    jitter = rng.normal(0, 0.02, (int(keep.sum()), 3)) * [1, 1, 0]
+    xyz = room.xyz[keep] + np.where(rng.random((int(keep.sum()), 1)) < 0.5, jitter, 0.0)
+    inst = room.instance[keep]
+    full, near = point_grid(xyz, inst), floor_points(xyz, inst)
+    assert near.shape == full.shape
+    np.testing.assert_array_equal(near.origin, full.origin)
+    nx, ny = full.shape
+    for radius in (END_RADIUS, 0.3):
+        for i0, i1, j0, j1 in ((0, nx, 0, ny), (3, 17, 20, ny), (nx - 9, nx, 0, 5)):
+            np.testing.assert_array_equal(near.free(i0, i1, j0, j1, radius),
+                                          full.free(i0, i1, j0, j1, radius))
+    q, pts = rng.uniform(0, 3, (200, 2)), rng.uniform(0, 3, (300, 2))
+    d = np.sqrt(((q[:, None] - pts[None]) ** 2).sum(-1)).min(1)
+    got = nearest_distances(q, pts, 0.2)
+    np.testing.assert_array_equal(got[d <= 0.2], d[d <= 0.2])
+    assert np.all(got[d > 0.2] > 0.2)
 
 
 def test_the_open_stool_is_chosen_and_ties_go_to_the_lowest_id():

@@ -15,7 +15,7 @@ by the room's geometry, the way the story planner places a walk's end
 
 ``grounding="adm"`` leaves both choices to the affordance model's map instead
 (:func:`jaxmotion.grounding.region.choose_region`), and a scene without object labels always
-does. All of it is NumPy and SciPy on the scene's points: no model runs.
+does. All of it is NumPy on the scene's points near the candidates: no model runs.
 """
 
 from __future__ import annotations
@@ -37,10 +37,10 @@ def approach_areas(room, objects, action: str | None = None) -> np.ndarray | Non
     :data:`~jaxmotion.planning.paths.WALK_REACH`); ``[len(objects)]``. None when the scene has
     no floor points to measure on."""
     from jaxmotion.motion.planner import PlanningError
-    from jaxmotion.planning.paths import SIT_REACH, WALK_REACH, approach_area, point_grid
+    from jaxmotion.planning.paths import SIT_REACH, WALK_REACH, approach_area, floor_points
 
-    try:
-        grid = point_grid(room.xyz, room.instance)
+    try:  # the points near each object only, not a clearance grid of the room
+        grid = floor_points(room.xyz, room.instance)
     except PlanningError:
         return None
     reach = SIT_REACH if action in ("sit", "lie") else WALK_REACH
@@ -72,7 +72,7 @@ def wander_target(room, objects, seed: int) -> dict | None:
     when no furniture has free floor around it, the room's structure (walls, floor) never.
     None when nothing has free floor around it (or the scene has no floor)."""
     every = [o for o in objects if o["category"] not in STRUCTURE]
-    areas = approach_areas(room, every) if every else None  # one clearance grid for both
+    areas = approach_areas(room, every) if every else None  # measured once for both pools
     if areas is None:
         return None
     passable = np.array([o["category"] in PASSABLE for o in every])

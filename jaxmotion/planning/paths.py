@@ -15,7 +15,10 @@ shortcuts, corners rounded into arcs, resampled by arc length):
   the floor. A body of radius ``r`` stands where the clearance is at least ``r``.
 
 :func:`approach_point` picks where a walk to an object ends: the free place within reach of
-the object nearest to the start along a path. Errors are
+the object nearest to the start along a path. :func:`approach_area` measures the free floor
+within reach of an object, on a :class:`PointGrid` or on :class:`FloorPoints` (the same cells,
+measured only near the object from the points there: the free floor's choice among a room's
+objects builds no grid of the whole room and imports no SciPy). Errors are
 :class:`~jaxmotion.motion.planner.PlanningError` with the reason (an end inside furniture, a
 room whose free space is not connected between the two).
 """
@@ -23,14 +26,17 @@ room whose free space is not connected between the two).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from jaxmotion.motion.planner import BODY_TOP, CELL, PlanningError, plan_path
 
-__all__ = ["SIT_REACH", "WALK_REACH", "WALK_WIDER", "PointGrid", "approach_area",
-           "approach_point", "free_graph", "point_grid", "scene_path"]
+if TYPE_CHECKING:  # SciPy is imported where a tree is built (the free floor's choice needs none)
+    from scipy.spatial import cKDTree
+
+__all__ = ["SIT_REACH", "WALK_REACH", "WALK_WIDER", "FloorPoints", "PointGrid", "approach_area",
+           "approach_point", "floor_points", "free_graph", "point_grid", "scene_path"]
 
 #: Body radius a walking path keeps from obstacles (m); the ends may come closer.
 WALK_RADIUS = 0.30
@@ -73,6 +79,16 @@ class PointGrid:
         ij = np.rint((np.asarray(xy, float) - self.origin) / CELL).astype(int)
         return np.clip(ij, 0, np.array(self.clearance.shape) - 1)
 
+    @property
+    def shape(self) -> tuple[int, int]:
+        """The grid's cells ``(NX, NY)``."""
+        return self.clearance.shape
+
+    def free(self, i0: int, i1: int, j0: int, j1: int, radius: float) -> np.ndarray:
+        """``[i1 - i0, j1 - j0]`` bool: the cells of the window where a body of ``radius``
+        stands (clearance ≥ ``radius``)."""
+        return self.clearance[i0:i1, j0:j1] >= radius
+
     def clearance_at(self, xy) -> np.ndarray:
         """Clearance ``[N]`` at points ``[N,2]``: the distance to the nearest obstacle point,
         -1 off the floor."""
@@ -88,6 +104,105 @@ def point_grid(xyz, instance=None, *, exclude=(), low: float = 0.1, high: float 
     """The :class:`PointGrid` of a scene's points ``xyz [N,3]`` (z-up, floor at 0, metres);
     ``instance [N]`` with ``exclude`` (instance ids) leaves those objects out of the
     obstacles. Raises :class:`PlanningError` for a scene without floor points."""
+    from scipy.spatial import cKDTree
+
+    pts = floor_points(xyz, instance, exclude=exclude, low=low, high=high,
+                       floor_height=floor_height, floor_gap=floor_gap)
+    origin, n = pts.origin, np.asarray(pts.shape)
+    grid = PointGrid(origin, np.zeros(n), cKDTree(pts.obstacles), cKDTree(pts.floor),
+                     float(floor_gap))
+    ij = np.stack(np.meshgrid(np.arange(n[0]), np.arange(n[1]), indexing="ij"), -1)
+    clr = grid.clearance_at(grid.centers(ij.reshape(-1, 2))).reshape(n)
+    clr.flags.writeable = False
+    return PointGrid(origin, clr, grid.obstacles, grid.floor, grid.floor_gap)
+
+
+@dataclass(frozen=True)
+class FloorPoints:
+    """A scene's floor and obstacle points (xy) on :class:`PointGrid`'s cells, without its
+    clearance over the whole room: :meth:`free` answers for a window of cells from the points
+    near it (the same cells as :meth:`PointGrid.free`), so measuring the free floor around a
+    few objects (:func:`approach_area`) needs no grid of the room and no tree.
+
+    Attributes:
+      origin: ``[2]`` xy of cell (0, 0)'s centre; shape: the cells ``(NX, NY)``.
+      obstacles: ``[K, 2]`` the obstacle points; floor: ``[F, 2]`` the floor points.
+      floor_gap: how far from a floor point a place still counts as floor (m).
+    """
+
+    origin: np.ndarray
+    shape: tuple[int, int]
+    obstacles: np.ndarray
+    floor: np.ndarray
+    floor_gap: float
+
+    def centers(self, ij) -> np.ndarray:
+        """Cell indices ``[N,2]`` -> xy ``[N,2]``."""
+        return self.origin + CELL * np.asarray(ij, float)
+
+    def index(self, xy) -> np.ndarray:
+        """xy ``[N,2]`` -> nearest cell indices ``[N,2]`` (clipped to the grid)."""
+        ij = np.rint((np.asarray(xy, float) - self.origin) / CELL).astype(int)
+        return np.clip(ij, 0, np.array(self.shape) - 1)
+
+    def free(self, i0: int, i1: int, j0: int, j1: int, radius: float) -> np.ndarray:
+        """``[i1 - i0, j1 - j0]`` bool: the cells of the window on the floor (a floor point
+        nearer than ``floor_gap``) with no obstacle point nearer than ``radius`` (> 0)."""
+        window = (i0, i1, j0, j1)
+        return self._near(window, self.floor, self.floor_gap) & ~self._near(
+            window, self.obstacles, radius)
+
+    def _near(self, window, points, r: float) -> np.ndarray:
+        """``[i1 - i0, j1 - j0]`` bool: the window's cells with one of ``points`` nearer to
+        their centre than ``r`` (the distance as :func:`nearest_distances` computes it). A
+        cell is sure when a point lies in a nearby cell's square that is wholly nearer than
+        ``r``; the others are measured against the points near them."""
+        i0, i1, j0, j1 = window
+        k = int(np.ceil(r / CELL + 0.5))  # a point nearer than r lies within k cells
+        lo, hi = self.centers([[i0, j0]])[0] - r, self.centers([[i1 - 1, j1 - 1]])[0] + r
+        points = points[np.all((points >= lo) & (points <= hi), axis=1)]
+        hit = np.zeros((i1 - i0, j1 - j0), bool)
+        if not len(points):
+            return hit
+        pad = np.zeros((i1 - i0 + 2 * k, j1 - j0 + 2 * k), bool)  # the window and k around
+        b = np.clip(np.rint((points - self.origin) / CELL).astype(int) - (i0 - k, j0 - k), 0,
+                    np.array(pad.shape) - 1)
+        pad[b[:, 0], b[:, 1]] = True
+        w, h = hit.shape
+        for di in range(-k, k + 1):
+            for dj in range(-k, k + 1):
+                if ((abs(di) + 0.5) ** 2 + (abs(dj) + 0.5) ** 2) * CELL * CELL < r * r * 0.999:
+                    hit |= pad[k + di:k + di + w, k + dj:k + dj + h]
+        todo = np.zeros_like(pad)
+        todo[k:k + w, k:k + h] = ~hit
+        # the points within k cells of a cell still to measure (a box sum over the pad)
+        box = np.pad(todo, k).cumsum(0).cumsum(1)
+        box = np.pad(box, ((1, 0), (1, 0)))
+        n = 2 * k + 1
+        near = (box[n:, n:] - box[:-n, n:] - box[n:, :-n] + box[:-n, :-n]) > 0
+        points = points[near[b[:, 0], b[:, 1]]]
+        if not len(points):
+            return hit
+        offsets = np.stack(np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1),
+                                       indexing="ij"), -1).reshape(-1, 2)
+        base = np.rint((points - self.origin) / CELL).astype(int)
+        step = max(1, (1 << 18) // len(offsets))  # points at a time
+        for s in range(0, len(points), step):
+            q = points[s:s + step, None]
+            ij = base[s:s + step, None] + offsets[None]
+            c = self.centers(ij)
+            d = np.sqrt((c[..., 0] - q[..., 0]) ** 2 + (c[..., 1] - q[..., 1]) ** 2)
+            ok = ((d < r) & (ij[..., 0] >= i0) & (ij[..., 0] < i1) & (ij[..., 1] >= j0)
+                  & (ij[..., 1] < j1))
+            hit[ij[ok][:, 0] - i0, ij[ok][:, 1] - j0] = True
+        return hit
+
+
+def floor_points(xyz, instance=None, *, exclude=(), low: float = 0.1, high: float = BODY_TOP,
+                 floor_height: float = 0.05, floor_gap: float = 0.15) -> FloorPoints:
+    """The :class:`FloorPoints` of a scene's points (the arguments of :func:`point_grid`,
+    which builds its grid from them). Raises :class:`PlanningError` for a scene without floor
+    points."""
     xyz = np.asarray(xyz, float)
     if xyz.ndim != 2 or xyz.shape[1] != 3 or not len(xyz):
         raise PlanningError(f"scene points must be [N, 3] with N > 0, got {xyz.shape}")
@@ -103,15 +218,31 @@ def point_grid(xyz, instance=None, *, exclude=(), low: float = 0.1, high: float 
     lo, hi = floor.min(0), floor.max(0)
     n = np.floor((hi - lo) / CELL).astype(int) + 1
     origin = lo + 0.5 * ((hi - lo) - CELL * (n - 1))
-    grid = PointGrid(origin, np.zeros(n), cKDTree(xyz[keep, :2]), cKDTree(floor),
-                     float(floor_gap))
-    ij = np.stack(np.meshgrid(np.arange(n[0]), np.arange(n[1]), indexing="ij"), -1)
-    clr = grid.clearance_at(grid.centers(ij.reshape(-1, 2))).reshape(n)
-    clr.flags.writeable = False
-    return PointGrid(origin, clr, grid.obstacles, grid.floor, grid.floor_gap)
+    return FloorPoints(origin, (int(n[0]), int(n[1])), xyz[keep, :2], floor, float(floor_gap))
 
 
-def _approach_cells(grid: PointGrid, target_xy, reach, radius: float, front):
+def nearest_distances(queries, points, within: float) -> np.ndarray:
+    """``[Q]``: each of ``queries [Q, 2]``'s distance to the nearest of ``points [P, 2]``, or
+    inf when none is nearer than ``within`` (those farther may come back as their distance or
+    inf): the points outside the queries' box widened by ``within`` are left out, the rest
+    compared with all queries in blocks."""
+    queries, points = np.asarray(queries, float), np.asarray(points, float)
+    out = np.full(len(queries), np.inf)
+    if not len(queries) or not len(points):
+        return out
+    lo, hi = queries.min(0) - within, queries.max(0) + within
+    points = points[np.all((points >= lo) & (points <= hi), axis=1)]
+    if not len(points):
+        return out
+    step = max(1, (1 << 20) // len(points))  # about a million distances at a time
+    for i in range(0, len(queries), step):
+        q = queries[i:i + step]
+        d2 = (q[:, None, 0] - points[None, :, 0]) ** 2 + (q[:, None, 1] - points[None, :, 1]) ** 2
+        out[i:i + step] = np.sqrt(d2.min(1))
+    return out
+
+
+def _approach_cells(grid: PointGrid | FloorPoints, target_xy, reach, radius: float, front):
     """The cells a body may end an approach to the object with points ``target_xy [M,2]`` on:
     ``(goal [NX,NY] bool: free and within reach, ahead [NX,NY] bool or None: in front of the
     object's front face)`` (see :func:`approach_point`); both are computed only within reach
@@ -124,21 +255,22 @@ def _approach_cells(grid: PointGrid, target_xy, reach, radius: float, front):
                           grid.index(target_xy.max(0)[None] + reach[1] + CELL)[0] + 1)
     ij = np.stack(np.meshgrid(np.arange(i0, i1), np.arange(j0, j1), indexing="ij"), -1)
     centres = grid.centers(ij.reshape(-1, 2))
-    d_tgt = cKDTree(target_xy).query(centres, distance_upper_bound=reach[1] + 1e-9)[0]
-    near = ((grid.clearance[i0:i1, j0:j1].ravel() >= radius) & (d_tgt >= reach[0])
-            & (d_tgt <= reach[1]))
-    goal = np.zeros(grid.clearance.shape, bool)
+    near = grid.free(i0, i1, j0, j1, radius).ravel()
+    d_tgt = nearest_distances(centres[near], target_xy, reach[1])  # of the free cells only
+    near[near] = (d_tgt >= reach[0]) & (d_tgt <= reach[1])
+    goal = np.zeros(grid.shape, bool)
     goal[i0:i1, j0:j1] = near.reshape(i1 - i0, j1 - j0)
     ahead = None
     if front is not None and np.linalg.norm(np.asarray(front, float)[:2]) > 1e-6:
         f = np.asarray(front, float)[:2] / np.linalg.norm(np.asarray(front, float)[:2])
-        ahead = np.zeros(grid.clearance.shape, bool)  # no goal lies outside the window
+        ahead = np.zeros(grid.shape, bool)  # no goal lies outside the window
         ahead[i0:i1, j0:j1] = (((centres - target_xy.mean(0)) @ f) > (
             (target_xy - target_xy.mean(0)) @ f).max()).reshape(i1 - i0, j1 - j0)
     return goal, ahead
 
 
-def approach_area(grid: PointGrid, target_xy, *, reach: tuple[float, float] = WALK_REACH,
+def approach_area(grid: PointGrid | FloorPoints, target_xy, *,
+                  reach: tuple[float, float] = WALK_REACH,
                   radius: float = END_RADIUS, front=None) -> float:
     """How much free floor (m²) a body has to end an approach to the object with points
     ``target_xy [M,2]`` on: the free cells (clearance ≥ ``radius``) within ``reach`` of it,

@@ -131,6 +131,18 @@ def test_floor_points_free_cells_are_the_grids():
         for i0, i1, j0, j1 in ((0, nx, 0, ny), (3, 17, 20, ny), (nx - 9, nx, 0, 5)):
             np.testing.assert_array_equal(near.free(i0, i1, j0, j1, radius),
                                           full.free(i0, i1, j0, j1, radius))
+    known = near.measured(END_RADIUS)  # the whole grid once, then windows cut from it
+    for _ in range(2):  # a window handed out is the caller's to change
+        cut = known.free(3, 17, 20, ny, END_RADIUS)
+        np.testing.assert_array_equal(cut, full.free(3, 17, 20, ny, END_RADIUS))
+        cut[:] = False
+    # many objects (measured once) and few (window by window): PointGrid's areas
+    objects = [o for o in room.objects if o["id"] != 99]
+    room_ns = SimpleNamespace(xyz=xyz, instance=inst)
+    for objs in (objects, objects[:2]):
+        want = [approach_area(full, xyz[inst == o["id"], :2], reach=SIT_REACH,
+                              front=o.get("front")) for o in objs]
+        np.testing.assert_array_equal(approach_areas(room_ns, objs, "sit"), want)
     q, pts = rng.uniform(0, 3, (200, 2)), rng.uniform(0, 3, (300, 2))
     d = np.sqrt(((q[:, None] - pts[None]) ** 2).sum(-1)).min(1)
     got = nearest_distances(q, pts, 0.2)

@@ -37,12 +37,15 @@ def approach_areas(room, objects, action: str | None = None) -> np.ndarray | Non
     :data:`~jaxmotion.planning.paths.WALK_REACH`); ``[len(objects)]``. None when the scene has
     no floor points to measure on."""
     from jaxmotion.motion.planner import PlanningError
-    from jaxmotion.planning.paths import SIT_REACH, WALK_REACH, approach_area, floor_points
+    from jaxmotion.planning.paths import (END_RADIUS, SIT_REACH, WALK_REACH, approach_area,
+                                          floor_points)
 
     try:  # the points near each object only, not a clearance grid of the room
         grid = floor_points(room.xyz, room.instance)
     except PlanningError:
         return None
+    if len(objects) > 3:  # their windows cover most of the room: measure it once
+        grid = grid.measured(END_RADIUS)
     reach = SIT_REACH if action in ("sit", "lie") else WALK_REACH
     areas = []
     for o in objects:

@@ -25,6 +25,7 @@ room whose free space is not connected between the two).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -128,6 +129,8 @@ class FloorPoints:
       origin: ``[2]`` xy of cell (0, 0)'s centre; shape: the cells ``(NX, NY)``.
       obstacles: ``[K, 2]`` the obstacle points; floor: ``[F, 2]`` the floor points.
       floor_gap: how far from a floor point a place still counts as floor (m).
+      known: ``(radius, [NX, NY] bool)``: the free cells of the whole grid for that radius,
+        measured once (:meth:`measured`), or None.
     """
 
     origin: np.ndarray
@@ -135,6 +138,13 @@ class FloorPoints:
     obstacles: np.ndarray
     floor: np.ndarray
     floor_gap: float
+    known: tuple | None = None
+
+    def measured(self, radius: float) -> FloorPoints:
+        """These points with the whole grid's free cells for ``radius`` measured at once
+        (cheaper than many windows when they cover most of the room)."""
+        return dataclasses.replace(self, known=(radius, self.free(0, self.shape[0], 0,
+                                                                  self.shape[1], radius)))
 
     def centers(self, ij) -> np.ndarray:
         """Cell indices ``[N,2]`` -> xy ``[N,2]``."""
@@ -148,6 +158,8 @@ class FloorPoints:
     def free(self, i0: int, i1: int, j0: int, j1: int, radius: float) -> np.ndarray:
         """``[i1 - i0, j1 - j0]`` bool: the cells of the window on the floor (a floor point
         nearer than ``floor_gap``) with no obstacle point nearer than ``radius`` (> 0)."""
+        if self.known is not None and self.known[0] == radius:
+            return self.known[1][i0:i1, j0:j1].copy()
         window = (i0, i1, j0, j1)
         return self._near(window, self.floor, self.floor_gap) & ~self._near(
             window, self.obstacles, radius)
@@ -255,7 +267,7 @@ def _approach_cells(grid: PointGrid | FloorPoints, target_xy, reach, radius: flo
                           grid.index(target_xy.max(0)[None] + reach[1] + CELL)[0] + 1)
     ij = np.stack(np.meshgrid(np.arange(i0, i1), np.arange(j0, j1), indexing="ij"), -1)
     centres = grid.centers(ij.reshape(-1, 2))
-    near = grid.free(i0, i1, j0, j1, radius).ravel()
+    near = grid.free(i0, i1, j0, j1, radius).flatten()  # a copy: narrowed below
     d_tgt = nearest_distances(centres[near], target_xy, reach[1])  # of the free cells only
     near[near] = (d_tgt >= reach[0]) & (d_tgt <= reach[1])
     goal = np.zeros(grid.shape, bool)

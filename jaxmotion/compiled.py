@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["LIFT_BYTES", "cached_call", "cached_program", "code_digest", "digest", "prefetch",
-           "prefetched", "release", "specs_of"]
+__all__ = ["CONSTS_SUFFIX", "LIFT_BYTES", "cached_call", "cached_program", "code_digest",
+           "digest", "prefetch", "prefetched", "release", "specs_of"]
 
 
 def digest(*parts) -> str:
@@ -51,7 +51,7 @@ def code_digest() -> str:
 
 
 #: Constants (weights) of at least this many bytes in all leave a cached program as its
-#: arguments, kept beside it in a ``.npz`` (see :func:`cached_call`).
+#: arguments, kept beside it in a ``.safetensors`` file (see :func:`cached_call`).
 LIFT_BYTES = 1 << 20
 
 
@@ -82,7 +82,9 @@ def cached_program(cache_dir: Path | None, name: str, fingerprint: str, build, s
 
     The constants the traced program closes over (the networks' weights) are lifted out of it
     when they come to :data:`LIFT_BYTES` or more: the program takes them as arguments and they
-    are kept beside it (``<artefact>.npz``). A program with its weights baked in compiles to
+    are kept beside it (``<artefact>.safetensors``: read without Python's parser, which
+    NumPy's ``.npy`` headers go through and which is not safe to run on two threads at once
+    in Python 3.11 and 3.12). A program with its weights baked in compiles to
     an executable of their size, and loading that took longer than running it; the weights
     themselves load in milliseconds. The numbers are the same either way.
     """
@@ -160,7 +162,7 @@ def _load_program(path: Path | None, build, specs):
 
     exp = None
     if path is not None and path.is_file():
-        consts_path = path.with_suffix(".npz")
+        consts_path = path.with_suffix(CONSTS_SUFFIX)
         try:
             from jax import export as jexport
 
@@ -187,8 +189,14 @@ def _read_consts(consts_path: Path):
     """The lifted constants kept beside a program, or None when it keeps its own."""
     if not consts_path.is_file():
         return None
-    with np.load(consts_path, allow_pickle=False) as z:
-        return tuple(z[f"c{i}"] for i in range(len(z.files)))
+    from safetensors.numpy import load
+
+    arrays = load(consts_path.read_bytes())
+    return tuple(arrays[f"c{i}"] for i in range(len(arrays)))
+
+
+#: The suffix of the file of a program's lifted constants (beside its ``.jaxexport``).
+CONSTS_SUFFIX = ".safetensors"
 
 
 def _export(path: Path | None, build, specs):
@@ -205,19 +213,22 @@ def _export(path: Path | None, build, specs):
         exp = jexport.export(jax.jit(fn))(specs_of(consts), *specs)
     if path is None:
         return exp, consts
-    consts_path = path.with_suffix(".npz")
+    consts_path = path.with_suffix(CONSTS_SUFFIX)
     try:
         from jaxmotion._atomic import atomic_open
 
         if consts is not None:  # written first: a program is only read with its weights
+            from safetensors.numpy import save
+
+            blob = save({f"c{i}": np.ascontiguousarray(c) for i, c in enumerate(consts)})
             with atomic_open(consts_path, "wb") as f:
-                np.savez(f, **{f"c{i}": c for i, c in enumerate(consts)})
+                f.write(blob)
         else:
             consts_path.unlink(missing_ok=True)
         with atomic_open(path, "wb") as f:
             f.write(exp.serialize())
-    except (OSError, ImportError):
-        pass  # a read-only cache, or no flatbuffers to serialize with: run uncached
+    except (OSError, ImportError, ValueError, TypeError):
+        pass  # a read-only cache, no flatbuffers, a dtype safetensors lacks: run uncached
     return exp, consts
 
 

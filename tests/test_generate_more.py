@@ -201,8 +201,9 @@ def test_the_adm_s_kept_program_loads_while_the_text_encodes(ckpt, tmp_path, mon
 
 
 def test_cached_programs_take_large_constants_as_arguments(tmp_path):
-    """Weights a program closes over (≥ LIFT_BYTES) leave it as arguments kept in an ``.npz``
-    beside it; the numbers are those of the program with them inside, cached or not."""
+    """Weights a program closes over (≥ LIFT_BYTES) leave it as arguments kept in a
+    ``.safetensors`` file beside it; the numbers are those of the program with them inside,
+    cached or not."""
     import jax
     import jax.numpy as jnp
 
@@ -222,17 +223,18 @@ def test_cached_programs_take_large_constants_as_arguments(tmp_path):
     for k in want:
         np.testing.assert_array_equal(np.asarray(first[k]), np.asarray(want[k]))
         np.testing.assert_array_equal(np.asarray(again[k]), np.asarray(want[k]))
+    from safetensors.numpy import load_file
+
     (prog,) = tmp_path.glob("g-*.jaxexport")
-    with np.load(prog.with_suffix(".npz")) as z:
-        sizes = sorted(z[k].size for k in z.files)
+    sizes = sorted(a.size for a in load_file(prog.with_suffix(C.CONSTS_SUFFIX)).values())
     assert sizes[-1] == w.size and prog.stat().st_size < w.nbytes / 4
     # a small program keeps its constants
     C.cached_call(tmp_path, "h", "v1", lambda: (lambda x: x * jnp.asarray(b[:3])), (x[0, :3],))
     (small,) = tmp_path.glob("h-*.jaxexport")
-    assert not small.with_suffix(".npz").exists()
+    assert not small.with_suffix(C.CONSTS_SUFFIX).exists()
     # a damaged weights file is rebuilt, not trusted
     C.release()  # read from disk again, as a new process does
-    prog.with_suffix(".npz").write_bytes(b"not an npz")
+    prog.with_suffix(C.CONSTS_SUFFIX).write_bytes(b"not a safetensors file")
     np.testing.assert_array_equal(
         np.asarray(C.cached_call(tmp_path, "g", "v1", build, (x,))["y"]), np.asarray(want["y"]))
 

@@ -53,6 +53,8 @@ def code_digest() -> str:
 #: Constants (weights) of at least this many bytes in all leave a cached program as its
 #: arguments, kept beside it in a ``.safetensors`` file (see :func:`cached_call`).
 LIFT_BYTES = 1 << 20
+#: The suffix of the file of a program's lifted constants (beside its ``.jaxexport``).
+CONSTS_SUFFIX = ".safetensors"
 
 
 def cached_call(cache_dir: Path | None, name: str, fingerprint: str, build, args):
@@ -193,10 +195,6 @@ def _read_consts(consts_path: Path):
 
     arrays = load(consts_path.read_bytes())
     return tuple(arrays[f"c{i}"] for i in range(len(arrays)))
-
-
-#: The suffix of the file of a program's lifted constants (beside its ``.jaxexport``).
-CONSTS_SUFFIX = ".safetensors"
 
 
 def _export(path: Path | None, build, specs):

@@ -29,6 +29,7 @@ __all__ = [
     "BODY_TOP",
     "CELL",
     "Grid",
+    "GridCells",
     "MotionError",
     "PlanningError",
     "build_grid",
@@ -111,8 +112,22 @@ def wall_distance(p: np.ndarray, floor_rects) -> np.ndarray:
     return np.where(inside, d, -d)
 
 
+class GridCells:
+    """The cells of a floor grid of :data:`CELL` squares: ``origin`` (``[2]`` xy of cell
+    (0, 0)'s centre) and ``shape`` ``(NX, NY)``, from the class that mixes it in."""
+
+    def centers(self, ij) -> np.ndarray:
+        """Cell indices ``[N,2]`` -> xy ``[N,2]``."""
+        return self.origin + CELL * np.asarray(ij, float)
+
+    def index(self, xy) -> np.ndarray:
+        """xy ``[N,2]`` -> nearest cell indices ``[N,2]`` (clipped to the grid)."""
+        ij = np.rint((np.asarray(xy, float) - self.origin) / CELL).astype(int)
+        return np.clip(ij, 0, np.array(self.shape) - 1)
+
+
 @dataclass(frozen=True)
-class Grid:
+class Grid(GridCells):
     """Floor occupancy grid.
 
     Attributes:
@@ -126,14 +141,10 @@ class Grid:
     floor_rects: np.ndarray
     boxes: np.ndarray
 
-    def centers(self, ij: np.ndarray) -> np.ndarray:
-        """Cell indices ``[N,2]`` -> xy ``[N,2]``."""
-        return self.origin + CELL * np.asarray(ij, float)
-
-    def index(self, xy: np.ndarray) -> np.ndarray:
-        """xy ``[N,2]`` -> nearest cell indices ``[N,2]`` (clipped to the grid)."""
-        ij = np.rint((np.asarray(xy, float) - self.origin) / CELL).astype(int)
-        return np.clip(ij, 0, np.array(self.clearance.shape) - 1)
+    @property
+    def shape(self) -> tuple[int, int]:
+        """The grid's cells ``(NX, NY)``."""
+        return self.clearance.shape
 
     def clearance_at(self, xy: np.ndarray) -> np.ndarray:
         """Exact clearance ``[N]`` at arbitrary points ``[N,2]`` (not the grid lookup)."""

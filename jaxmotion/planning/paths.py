@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from jaxmotion.motion.planner import BODY_TOP, CELL, PlanningError, plan_path
+from jaxmotion.motion.planner import BODY_TOP, CELL, GridCells, PlanningError, plan_path
 
 if TYPE_CHECKING:  # SciPy is imported where a tree is built (the free floor's choice needs none)
     from scipy.spatial import cKDTree
@@ -53,7 +53,7 @@ WALK_WIDER = (1.0, 1.5)
 
 
 @dataclass(frozen=True)
-class PointGrid:
+class PointGrid(GridCells):
     """Clearance grid of a point cloud, with the interface of
     :class:`jaxmotion.motion.planner.Grid` (``origin``, ``clearance``, ``centers``,
     ``index``, ``clearance_at``).
@@ -70,15 +70,6 @@ class PointGrid:
     obstacles: cKDTree
     floor: cKDTree
     floor_gap: float
-
-    def centers(self, ij) -> np.ndarray:
-        """Cell indices ``[N,2]`` -> xy ``[N,2]``."""
-        return self.origin + CELL * np.asarray(ij, float)
-
-    def index(self, xy) -> np.ndarray:
-        """xy ``[N,2]`` -> nearest cell indices ``[N,2]`` (clipped to the grid)."""
-        ij = np.rint((np.asarray(xy, float) - self.origin) / CELL).astype(int)
-        return np.clip(ij, 0, np.array(self.clearance.shape) - 1)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -119,7 +110,7 @@ def point_grid(xyz, instance=None, *, exclude=(), low: float = 0.1, high: float 
 
 
 @dataclass(frozen=True)
-class FloorPoints:
+class FloorPoints(GridCells):
     """A scene's floor and obstacle points (xy) on :class:`PointGrid`'s cells, without its
     clearance over the whole room: :meth:`free` answers for a window of cells from the points
     near it (the same cells as :meth:`PointGrid.free`), so measuring the free floor around a
@@ -145,15 +136,6 @@ class FloorPoints:
         (cheaper than many windows when they cover most of the room)."""
         return dataclasses.replace(self, known=(radius, self.free(0, self.shape[0], 0,
                                                                   self.shape[1], radius)))
-
-    def centers(self, ij) -> np.ndarray:
-        """Cell indices ``[N,2]`` -> xy ``[N,2]``."""
-        return self.origin + CELL * np.asarray(ij, float)
-
-    def index(self, xy) -> np.ndarray:
-        """xy ``[N,2]`` -> nearest cell indices ``[N,2]`` (clipped to the grid)."""
-        ij = np.rint((np.asarray(xy, float) - self.origin) / CELL).astype(int)
-        return np.clip(ij, 0, np.array(self.shape) - 1)
 
     def free(self, i0: int, i1: int, j0: int, j1: int, radius: float) -> np.ndarray:
         """``[i1 - i0, j1 - j0]`` bool: the cells of the window on the floor (a floor point

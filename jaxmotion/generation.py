@@ -138,7 +138,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     from jaxmotion.pipelines.object_centric import prefetch_sampler
     from jaxmotion.scene.checks import scene_warnings
     from jaxmotion.scene.demo import load_scene_arg
-    from jaxmotion.text.condition import blank_condition, embed_one, prefetch_encoder
+    from jaxmotion.text.condition import blank_condition, embed_one
 
     times: dict[str, float] = {}
     t0 = [time.perf_counter()]
@@ -156,7 +156,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     root = seed_key_data(opts.seed)  # jax.random.key(seed)'s data, made on the host
     if models.files and opts.pipeline in ("auto", "object-centric"):  # loads while grounding
         prefetch_sampler(opts, models.files, root, aot_dir, versions)
-    prefetch_encoder(text, texts := xla_cache / "text-embeddings")  # if the text is new
+    texts = xla_cache / "text-embeddings"
     room = load_scene_arg(scene, opts.num_points)
     if room.num_points == 0:
         raise GenerateError("the scene has no points")

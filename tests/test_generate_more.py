@@ -163,23 +163,27 @@ def test_a_prefetched_program_is_the_one_called(tmp_path):
     assert C.prefetched() == ()
 
 
-def test_a_new_sentence_s_encoder_loads_while_the_scene_is_read(tmp_path):
-    """A sentence not in the embedding cache starts the encoder's kept program loading (as
-    generate does before it reads the scene), and its encoding takes that program; a cached
-    sentence starts nothing."""
+def test_a_new_sentence_is_encoded_on_the_host(tmp_path, monkeypatch):
+    """A sentence not in the embedding cache is encoded in NumPy: no program is kept or
+    loaded for it and the batch encoder is never built; the embedding is the batch encoder's
+    and is kept in the cache (a second ask reads it)."""
     import jaxmotion.compiled as C
-    from jaxmotion.text.condition import embed_one, prefetch_encoder, text_encoder
+    from jaxmotion.text import condition, minilm
+    from jaxmotion.text.condition import embed_one, text_encoder
 
+    reference = text_encoder()(["walk to the sofa"])[0]
     cache = tmp_path / "xla" / "text-embeddings"
-    assert not prefetch_encoder("sit on the sofa", cache)  # no program on disk yet
-    embed_one("sit on the sofa", cache)  # traces and keeps it
-    C.release()  # as a new process
-    assert prefetch_encoder("walk to the sofa", cache)  # the same length bucket
-    assert len(C.prefetched()) == 1
+    monkeypatch.setattr(condition, "text_encoder", lambda: pytest.fail("encoder built"))
+    loaded, real = [], C.cached_program
+    monkeypatch.setattr(C, "cached_program", lambda *a, **k: loaded.append(a[1]) or real(*a, **k))
     emb = embed_one("walk to the sofa", cache)
-    assert C.prefetched() == ()
-    np.testing.assert_allclose(emb[0], text_encoder()(["walk to the sofa"])[0], atol=1e-6)
-    assert not prefetch_encoder("walk to the sofa", cache)  # in the cache now
+    assert loaded == [] and not (tmp_path / "xla" / "programs").exists()
+    np.testing.assert_allclose(emb[0], reference, atol=1e-6)
+    monkeypatch.setattr(minilm, "encode_one", lambda *a, **k: pytest.fail("encoded again"))
+    from jaxmotion.text.cache import close_shared
+
+    close_shared()  # as a new process: from the file
+    np.testing.assert_array_equal(embed_one("walk to the sofa", cache), emb)
 
 
 def test_the_adm_s_kept_program_loads_while_the_text_encodes(ckpt, tmp_path, monkeypatch):

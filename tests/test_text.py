@@ -93,6 +93,97 @@ def test_batch_equals_single(encoder):
 
 
 @needs_minilm
+def test_one_sentence_on_the_host_matches_the_batch_encoder(encoder, reference):
+    """``minilm.encode_one`` (NumPy, float64) gives the batch encoder's embedding and token
+    states up to float32 rounding, and sentence-transformers' own embedding as closely as
+    the batch encoder does, on the reference texts (the empty one and a 256-token one too)."""
+    texts = [str(t) for t in reference["texts"]]
+    ones = np.stack([minilm.encode_one(t) for t in texts])
+    assert ones.dtype == np.float32
+    np.testing.assert_allclose(ones, encoder(texts), atol=1e-6)
+    ref = reference["emb"]
+    cos = (ones * ref).sum(1) / np.linalg.norm(ref, axis=1)
+    assert cos.min() > 0.9999
+    for t, states in zip(SENTENCES + texts[-1:], encoder.token_states(SENTENCES + texts[-1:])):
+        mine = minilm.encode_one(t, tokens=True)
+        assert mine.shape == states.shape
+        np.testing.assert_allclose(mine, states, atol=2e-5)
+    # a copy, not the process's kept value
+    minilm.encode_one(texts[0])[:] = 0
+    assert np.abs(minilm.encode_one(texts[0])).max() > 0
+
+
+def test_one_sentence_network_against_a_dense_reference(tmp_path):
+    """``bert_numpy.encode_tokens`` on a small random BERT written in the file layout,
+    against the network's definition written out with explicit loops over heads and tokens
+    (no weights package needed)."""
+    import math
+
+    from safetensors.numpy import save_file
+
+    from jaxmotion.text.bert_config import BertConfig, hf_parameter_names
+    from jaxmotion.text.bert_numpy import encode_tokens, load_weights
+
+    cfg = BertConfig(vocab_size=50, hidden=8, layers=2, heads=2, intermediate=16,
+                     max_positions=12, type_vocab=2, eps=1e-12)
+    rng = np.random.default_rng(0)
+    shapes = {}
+    for path, (name, turn) in hf_parameter_names(cfg).items():
+        kind = path[-1]
+        if kind == "embedding":
+            rows = {"word": cfg.vocab_size, "position": cfg.max_positions}.get(path[0], 2)
+            shapes[name] = (rows, cfg.hidden)
+        elif kind == "kernel":
+            i, o = {"ff_in": (8, 16), "ff_out": (16, 8)}.get(path[2], (8, 8))
+            shapes[name] = (o, i)  # torch's [out, in]
+        else:
+            n = 16 if path[-2] == "ff_in" else 8
+            shapes[name] = (n,)
+    w = {k: rng.normal(size=s).astype(np.float32) for k, s in shapes.items()}
+    save_file(w, str(tmp_path / "model.safetensors"))
+    (tmp_path / "config.json").write_text(json.dumps({
+        "vocab_size": 50, "hidden_size": 8, "num_hidden_layers": 2, "num_attention_heads": 2,
+        "intermediate_size": 16, "max_position_embeddings": 12, "type_vocab_size": 2,
+        "layer_norm_eps": 1e-12}))
+    ids = [1, 7, 3, 49, 2]
+
+    def ln(v, p):
+        return (v - v.mean()) / math.sqrt(v.var() + 1e-12) * w[p + ".weight"] + w[p + ".bias"]
+
+    def lin(v, p):
+        return w[p + ".weight"].astype(np.float64) @ v + w[p + ".bias"]
+
+    x = [ln(w["embeddings.word_embeddings.weight"][i] + w["embeddings.position_embeddings.weight"]
+            [j] + w["embeddings.token_type_embeddings.weight"][0], "embeddings.LayerNorm")
+         for j, i in enumerate(ids)]
+    for layer in range(2):
+        p = f"encoder.layer.{layer}."
+        q, k, v = ([lin(t, p + f"attention.self.{n}") for t in x]
+                   for n in ("query", "key", "value"))
+        out = []
+        for a in range(len(ids)):
+            ctx = np.zeros(8)
+            for hd in range(2):
+                s = slice(4 * hd, 4 * hd + 4)
+                logits = np.array([q[a][s] @ k[b][s] / 2.0 for b in range(len(ids))])
+                wts = np.exp(logits - logits.max())
+                ctx[s] = sum(wt * v[b][s] for b, wt in enumerate(wts / wts.sum()))
+            y = ln(x[a] + lin(ctx, p + "attention.output.dense"), p + "attention.output.LayerNorm")
+            f = lin(y, p + "intermediate.dense")
+            f = np.array([0.5 * z * (1 + math.erf(z / math.sqrt(2))) for z in f])
+            out.append(ln(y + lin(f, p + "output.dense"), p + "output.LayerNorm"))
+        x = out
+    mean = np.mean(x, axis=0)
+    pooled, states = encode_tokens(ids, load_weights(tmp_path))
+    np.testing.assert_allclose(states, np.array(x), rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(pooled, mean / np.linalg.norm(mean), atol=1e-6)
+    with pytest.raises(ValueError, match="outside the word table"):
+        encode_tokens([1, 50], load_weights(tmp_path))
+    with pytest.raises(ValueError, match="1 to 12"):
+        encode_tokens(list(range(13)), load_weights(tmp_path))
+
+
+@needs_minilm
 def test_padding_bucket_invariance(encoder):
     ids = encoder.tokenize(SENTENCES[:1])
     e16 = encoder.encode_ids(ids, pad_to=16)

@@ -14,9 +14,9 @@ Cost: the action prototypes and the class names ("a chair", NYU40's and the synt
 world's classes) are shipped embedded (:data:`PHRASE_TABLE`, used when the installed encoder's
 weights are the ones it was computed with: :func:`jaxmotion.text.minilm.weights_fingerprint`;
 ``python scripts/make_phrase_table.py`` writes it again). Another phrase not seen before
-costs one pass of the encoder's traced program kept on disk (about half a second in a fresh
-process); more than :data:`ONE_BY_ONE` at once load the encoder (about 5 s). Seen phrases
-cost a cache read.
+costs one pass of the encoder on the host (:func:`jaxmotion.text.minilm.encode_one`, tens of
+milliseconds); more than :data:`ONE_BY_ONE` at once build the batch encoder (about 5 s). Seen
+phrases cost a cache read.
 """
 
 from __future__ import annotations
@@ -36,8 +36,8 @@ __all__ = ["ACTION_MARGIN", "ACTION_THRESHOLD", "CATEGORY_MARGIN", "CATEGORY_THR
 
 ACTION_THRESHOLD, ACTION_MARGIN = 0.6, 0.1
 CATEGORY_THRESHOLD, CATEGORY_MARGIN = 0.6, 0.04
-#: New phrases up to this many are embedded one by one by the traced program on disk; more
-#: load the sentence encoder once and go as a batch (:meth:`TextSimilarity.encode`).
+#: New phrases up to this many are embedded one by one on the host; more build the batch
+#: sentence encoder once and go as a batch (:meth:`TextSimilarity.encode`).
 ONE_BY_ONE = 16
 #: The shipped embeddings of :func:`table_phrases` (``phrases``, ``embeddings`` [P, D] as the
 #: encoder gives them, ``weights``: the encoder's :func:`~jaxmotion.text.minilm
@@ -124,15 +124,20 @@ class TextSimilarity:
 
     def encode(self, texts: list[str]) -> np.ndarray:
         """The sentence encoder's embeddings of ``texts`` through the on-disk cache: up to
-        :data:`ONE_BY_ONE` new phrases go one by one through the encoder's traced program on
-        disk (loaded once per process, ~0.05 s a phrase), more load the encoder (~2 s) and go
-        as a batch."""
+        :data:`ONE_BY_ONE` new phrases go one by one through the encoder on the host
+        (:func:`jaxmotion.text.minilm.encode_one`, ~0.05 s a phrase), more build the batch
+        encoder (~2 s) and go as a batch."""
         from jaxmotion.text import EmbeddingCache, cache_key
         from jaxmotion.text.condition import text_encoder
-        from jaxmotion.text.minilm import encode_one_cached, weights_version
+        from jaxmotion.text.minilm import encode_one, weights_version
+
+        def fresh(phrases):
+            if len(phrases) <= ONE_BY_ONE:
+                return [encode_one(t) for t in phrases]
+            return list(text_encoder()(phrases))
 
         if self.cache_dir is None:
-            return text_encoder()(texts)
+            return np.stack(fresh(texts)) if texts else np.zeros((0, 1), np.float32)
         keys = [cache_key(f"{TEXT_ENCODER}:grounding", weights_version(), t) for t in texts]
         cache = EmbeddingCache.shared(self.cache_dir)
         found = cache.get(keys)
@@ -141,11 +146,7 @@ class TextSimilarity:
         found.update((k, shipped[t]) for k, t in todo if t in shipped)
         todo = [(k, t) for k, t in todo if k not in found]
         if todo:
-            if len(todo) <= ONE_BY_ONE:
-                programs = self.cache_dir.parent / "programs"
-                new = [encode_one_cached(t, programs) for _, t in todo]
-            else:
-                new = list(text_encoder()([t for _, t in todo]))
+            new = fresh([t for _, t in todo])
             try:
                 cache.put([k for k, _ in todo], np.stack(new))
             except OSError:  # a read-only cache: the values are just not kept

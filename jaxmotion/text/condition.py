@@ -18,8 +18,7 @@ import numpy as np
 from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.errors import GenerateError
 
-__all__ = ["blank_condition", "check_text", "embed_one", "pooled_text", "prefetch_encoder",
-           "text_encoder"]
+__all__ = ["blank_condition", "check_text", "embed_one", "pooled_text", "text_encoder"]
 
 
 @functools.lru_cache(maxsize=1)
@@ -104,27 +103,20 @@ def embed_one(text: str, cache_dir: Path | None, text_tokens: int = 0):
     """The text condition of ``text`` for a batch of one: the MiniLM embedding ``[1, 384]``,
     or, for an ADM that reads ``text_tokens`` > 0 token states, ``{"pooled" [1, 384],
     "tokens" [1, L, 384], "mask" [1, L]}`` (as
-    :meth:`~jaxmotion.pipelines.affordance.AffordancePipeline.embed_text`). Both go through the project's
-    on-disk caches (:class:`~jaxmotion.text.EmbeddingCache`,
-    :class:`~jaxmotion.text.TokenCache`), keyed by the weights file's size and mtime (its
-    checksum would mean reading 90 MB): a repeated command never loads the encoder. A new
-    sentence goes through the encoder's traced program kept beside them (``programs/``,
-    :func:`jaxmotion.text.minilm.encode_one_cached`: the same numbers, without building the
-    network in every new process)."""
+    :meth:`~jaxmotion.pipelines.affordance.AffordancePipeline.embed_text`). Both go through
+    the project's on-disk caches (:class:`~jaxmotion.text.EmbeddingCache`,
+    :class:`~jaxmotion.text.TokenCache`) when ``cache_dir`` is given, keyed by the weights
+    file's size and mtime (its checksum would mean reading 90 MB). A new sentence is encoded
+    on the host (:func:`jaxmotion.text.minilm.encode_one`: the batch encoder's numbers in tens
+    of milliseconds, with no network to build or program to load)."""
     from jaxmotion.text import EmbeddingCache, TokenCache, cache_key, pad_tokens
-    from jaxmotion.text.minilm import encode_one_cached, weights_version
-
-    programs = None if cache_dir is None else Path(cache_dir).parent / "programs"
+    from jaxmotion.text.minilm import encode_one, weights_version
 
     def pooled():
-        if programs is None:
-            return text_encoder()([text])[0]
-        return encode_one_cached(text, programs)
+        return encode_one(text)
 
     def words():
-        if programs is None:
-            return text_encoder().token_states([text])[0]
-        return encode_one_cached(text, programs, tokens=True)
+        return encode_one(text, tokens=True)
 
     if cache_dir is None:
         emb, states = pooled(), (words() if text_tokens else None)
@@ -141,21 +133,6 @@ def embed_one(text: str, cache_dir: Path | None, text_tokens: int = 0):
         return emb
     tokens, mask = pad_tokens([states], int(text_tokens), emb.shape[1])
     return {"pooled": emb, "tokens": tokens, "mask": mask}
-
-
-def prefetch_encoder(text: str, cache_dir: Path | None) -> bool:
-    """Start loading the sentence encoder's one-sentence program in the background when
-    :func:`embed_one` will need it (``text``'s embedding is not in the cache ``cache_dir``), so
-    that it loads while the scene and the instruction are read. Returns whether it started."""
-    from jaxmotion.text import EmbeddingCache, cache_key
-    from jaxmotion.text.minilm import prefetch_one, weights_version
-
-    if cache_dir is None:
-        return False
-    key = cache_key(TEXT_ENCODER, weights_version(), text)
-    if key in EmbeddingCache.shared(cache_dir):
-        return False
-    return prefetch_one(text, Path(cache_dir).parent / "programs")
 
 
 def blank_condition(text_tokens: int = 0, dim: int = 384):

@@ -1,6 +1,7 @@
-"""all-MiniLM-L6-v2 (sentence-transformers) as a sentence encoder: tokenisation, the encoder
-(:class:`TextEncoder`, over the Flax NNX network of :mod:`jaxmotion.text.bert`) and the cached
-one-sentence program (:func:`encode_one_cached`, which needs no Flax once traced).
+"""all-MiniLM-L6-v2 (sentence-transformers) as a sentence encoder: tokenisation, the batch
+encoder (:class:`TextEncoder`, over the Flax NNX network of :mod:`jaxmotion.text.bert`) and
+one sentence on the host (:func:`encode_one`, the same network in NumPy:
+:mod:`jaxmotion.text.bert_numpy`).
 
 The model is a 6-layer BERT (hidden 384, 12 heads, FF 1536, exact-erf GELU,
 post-LayerNorm with eps 1e-12, learned absolute positions, token types).
@@ -50,11 +51,10 @@ __all__ = [
     "PIP_COMMAND",
     "BertConfig",
     "TextEncoder",
-    "encode_one_cached",
+    "encode_one",
     "hf_parameter_names",
     "load_minilm",
     "minilm_dir",
-    "prefetch_one",
     "weights_fingerprint",
     "weights_version",
 ]
@@ -273,85 +273,25 @@ def load_minilm(folder=None, *, batch_size: int = 64) -> TextEncoder:
 
 
 # --------------------------------------------------------------------------- one sentence, fast
-def _canonical_order(cfg: BertConfig) -> list[tuple[tuple, str, bool]]:
-    """``(path, safetensors name, transpose)`` in the order ``jax.tree.flatten`` visits the
-    model's state (sorted keys at every level); checked against the real state when the
-    program is traced (:func:`encode_one_cached`)."""
-    return [(p, *v) for p, v in sorted(hf_parameter_names(cfg).items())]
-
-
-def encode_one_cached(text: str, cache_dir, *, tokens: bool = False, folder=None) -> np.ndarray:
-    """One sentence through a traced forward kept on disk (:func:`jaxmotion.compiled.cached_call`):
-    the pooled embedding ``[dim]``, or with ``tokens`` the token states ``[n_tokens, dim]`` —
-    the numbers of :class:`TextEncoder`'s batch of one (same network, same padding).
-
-    A fresh process otherwise spends about a second building the network before it can
-    encode a new sentence; here it reads the weights as arrays (they are the program's
-    arguments, so the file on disk stays small), tokenises, and runs the deserialised program.
-    One program gives both outputs, and a sentence is encoded once per process: asking for
-    its token states after its embedding (the ADM reads words) costs nothing more. The
-    network is built only when the program is not on disk yet; the weights are read and the
-    program loaded once per process."""
+def encode_one(text: str, *, tokens: bool = False, folder=None) -> np.ndarray:
+    """One sentence's pooled embedding ``[dim]``, or with ``tokens`` its token states
+    ``[n_tokens, dim]`` (``[CLS]`` and ``[SEP]`` included): :class:`TextEncoder`'s numbers for
+    a batch of one, up to float rounding, computed in NumPy
+    (:mod:`jaxmotion.text.bert_numpy`) in tens of milliseconds with no program to build or
+    load. A sentence is encoded once per process (asking for its token states after its
+    embedding costs nothing more); the weights are read once per process."""
     folder = Path(folder) if folder is not None else minilm_dir()
-    pooled, states = _encode_one(text, str(Path(cache_dir)), str(folder))
+    pooled, states = _encode_one(text, str(folder))
     return (states if tokens else pooled).copy()
 
 
 @functools.lru_cache(maxsize=256)
-def _encode_one(text: str, cache_dir: str, folder: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(pooled [dim], token states [n_tokens, dim])`` of one sentence (see
-    :func:`encode_one_cached`)."""
-    from jaxmotion.compiled import cached_call
+def _encode_one(text: str, folder: str) -> tuple[np.ndarray, np.ndarray]:
+    from jaxmotion.text.bert_numpy import encode_tokens, load_weights
 
     folder = Path(folder)
-    ids, arr, mask = _one_row(text, folder)
-    st = (folder / "model.safetensors").stat()
-    leaves = _weight_leaves(str(folder), st.st_size, st.st_mtime_ns)
-
-    def build():
-        enc = load_minilm(folder)
-        flat, treedef = jax.tree_util.tree_flatten_with_path(enc._state)
-        paths = [tuple(getattr(k, "key", getattr(k, "idx", getattr(k, "name", k))) for k in p)
-                 for p, _ in flat]
-        paths = [p[:-1] if p and p[-1] == "value" else p for p in paths]
-        order = _canonical_order(BertConfig.from_hf(folder / "config.json"))
-        if [tuple(p) for p in paths] != [p for p, _, _ in order]:
-            raise AssertionError("MiniLM's state is not flattened in the canonical order; "
-                                 "update _canonical_order")
-        turn = [transpose for _, _, transpose in order]
-
-        def run(leaves, ids, mask):  # the weights as stored: the kernels turned in the program
-            leaves = [leaf.T if t else leaf for leaf, t in zip(leaves, turn)]
-            return enc._forward_both(jax.tree_util.tree_unflatten(treedef, leaves), ids, mask)
-
-        return run
-
-    pooled, states = cached_call(Path(cache_dir), "minilm", weights_version(folder), build,
-                                 (leaves, arr, mask))
-    return (np.asarray(pooled, np.float32)[0],
-            np.asarray(states, np.float32)[0, :len(ids)])
-
-
-def prefetch_one(text: str, cache_dir, *, folder=None) -> bool:
-    """Start loading, in the background, the kept program :func:`encode_one_cached` will run
-    for ``text`` (:func:`jaxmotion.compiled.prefetch`; its shapes come from the text's length
-    and the weights file's header, nothing is read in full): a new sentence's encoding then
-    finds it loaded. Returns whether it started (the program is on disk, not loaded yet)."""
-    import jax
-    from safetensors import safe_open
-
-    from jaxmotion.compiled import prefetch
-
-    folder = Path(folder) if folder is not None else minilm_dir()
-    _, arr, mask = _one_row(text, folder)
-    weights = folder / "model.safetensors"
-    order = _canonical_order(BertConfig.from_hf(folder / "config.json"))
-    with safe_open(str(weights), framework="numpy") as f:
-        leaves = tuple(jax.ShapeDtypeStruct(tuple(f.get_slice(name).get_shape()), np.float32)
-                       for _, name, _ in order)
-    specs = (leaves, jax.ShapeDtypeStruct(arr.shape, arr.dtype),
-             jax.ShapeDtypeStruct(mask.shape, mask.dtype))
-    return prefetch(Path(cache_dir), "minilm", weights_version(folder), specs)
+    tok = _fast_tokenizer(str(folder / "tokenizer.json"), max_seq_length(folder))
+    return encode_tokens(tok.encode(text).ids, load_weights(folder))
 
 
 def weights_version(folder=None) -> str:
@@ -386,33 +326,6 @@ def weights_fingerprint(folder=None) -> str:
     path = (Path(folder) if folder is not None else minilm_dir()) / "model.safetensors"
     st = path.stat()
     return _fingerprint(str(path), st.st_size, st.st_mtime_ns)
-
-
-def _one_row(text: str, folder: Path) -> tuple[list[int], np.ndarray, np.ndarray]:
-    """``(token ids, ids [1, bucket], mask [1, bucket])`` of one sentence, padded to its length
-    bucket (:data:`LENGTH_BUCKETS`)."""
-    max_length = max_seq_length(folder)
-    tok = _fast_tokenizer(str(folder / "tokenizer.json"), max_length)
-    ids = tok.encode(text).ids
-    t = next((min(b, max_length) for b in LENGTH_BUCKETS if len(ids) <= b), max_length)
-    arr = np.zeros((1, t), np.int32)
-    mask = np.zeros((1, t), np.int32)
-    arr[0, :len(ids)] = ids
-    mask[0, :len(ids)] = 1
-    return ids, arr, mask
-
-
-@functools.lru_cache(maxsize=1)
-def _weight_leaves(folder: str, size: int, mtime_ns: int) -> tuple:
-    """The network's weights in :func:`_canonical_order` as float32 arrays laid out as the
-    file stores them (the kernels that the network holds transposed are turned inside the
-    traced program, where that costs nothing, rather than copied here: 90 MB), read once
-    per process (``size`` and ``mtime_ns`` of the file key the cache)."""
-    from safetensors.numpy import load_file
-
-    tensors = load_file(str(Path(folder) / "model.safetensors"))
-    order = _canonical_order(BertConfig.from_hf(Path(folder) / "config.json"))
-    return tuple(tensors[name].astype(np.float32, copy=False) for _, name, _ in order)
 
 
 @functools.lru_cache(maxsize=2)

@@ -25,7 +25,7 @@ objects, or for a text naming none, by the room's free floor (:mod:`jaxmotion.gr
 instead of the ADM's map; ``room_6`` and ``room_7`` (recorded then) keep the ADM's choice
 (``grounding="adm"``). All cases again on 2026-11-28: a new sentence is encoded in NumPy
 (:func:`jaxmotion.text.minilm.encode_one`) instead of the encoder's compiled program, which
-moves the embeddings by ~1e-7 and the joints by at most 0.7 mm (same targets, same motions).
+moves the embeddings by ~2e-7 and the joints by at most 0.15 mm (same targets, same motions).
 """
 
 from __future__ import annotations

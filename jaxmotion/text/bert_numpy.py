@@ -2,13 +2,13 @@
 
 ``generate`` encodes one new sentence per run. Through XLA that meant loading a compiled
 program (0.6–0.8 s on a 2-core CPU, longer while the samplers' programs load beside it) for a
-forward pass that takes milliseconds; here the same network runs on the host in float64
-(30–80 ms for 7–30 tokens), reading only the weights it needs from ``model.safetensors``:
-the layers (44 MB) and the rows of the word table the sentence's tokens name.
+forward pass that takes milliseconds; here the same network runs on the host in float32, as
+XLA runs it (30–40 ms for 7–30 tokens on one core), on the weights mapped from
+``model.safetensors`` (nothing is copied: a new process maps them in milliseconds).
 
 One sentence needs no padding: its tokens attend to each other only (a padded batch gives
 padded keys exactly zero weight), so the result is the batch encoder's up to float rounding
-(the pooled embedding within ~2e-7, the token states within ~3e-6; see ``tests/test_text.py``).
+(see ``tests/test_text.py``).
 """
 
 from __future__ import annotations
@@ -27,59 +27,67 @@ _WORDS = "embeddings.word_embeddings.weight"
 
 
 class BertWeights:
-    """The weights of a BERT for :func:`encode_tokens`: its configuration, the layers'
-    tensors (float64, the dense kernels turned to ``[in, out]``) and the word table read row
-    by row from the file."""
+    """The weights of a BERT for :func:`encode_tokens`: its configuration and its tensors by
+    their names in the file, float32 as stored (the dense kernels ``[out, in]``, as torch
+    keeps them), mapped from the file rather than copied."""
 
     def __init__(self, path: Path, cfg: BertConfig, tensors: dict[str, np.ndarray]):
         self.path, self.cfg = Path(path), cfg
         self._t = tensors
-        self._rows: dict[int, np.ndarray] = {}
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self._t[name]
 
     def words(self, ids) -> np.ndarray:
-        """The word-table rows of ``ids`` ``[len(ids), hidden]`` float64 (read once each)."""
-        missing = sorted({int(i) for i in ids} - self._rows.keys())
-        if missing:
-            from safetensors import safe_open
-
-            with safe_open(str(self.path), framework="numpy") as f:
-                table = f.get_slice(_WORDS)
-                rows = table.get_shape()[0]
-                for i in missing:
-                    if not 0 <= i < rows:
-                        raise ValueError(f"token id {i} is outside the word table ({rows} rows)")
-                    self._rows[i] = np.asarray(table[i:i + 1][0], np.float64)
-        return np.stack([self._rows[int(i)] for i in ids])
+        """The word-table rows of ``ids`` ``[len(ids), hidden]``."""
+        table = self._t[_WORDS]
+        bad = [int(i) for i in ids if not 0 <= int(i) < len(table)]
+        if bad:
+            raise ValueError(f"token id {bad[0]} is outside the word table ({len(table)} rows)")
+        return table[np.asarray(ids, np.int64)]
 
 
 def load_weights(folder) -> BertWeights:
-    """The weights of the BERT in ``folder`` (``config.json``, ``model.safetensors``), read
+    """The weights of the BERT in ``folder`` (``config.json``, ``model.safetensors``), mapped
     once per process while the file is unchanged (its size and modification time key it)."""
     path = Path(folder) / "model.safetensors"
     st = path.stat()
     return _load(str(path), st.st_size, st.st_mtime_ns)
 
 
+#: safetensors' dtype names NumPy reads as they are (anything else is refused).
+_DTYPES = {"F32": np.float32, "F16": np.float16, "F64": np.float64}
+
+
 @functools.lru_cache(maxsize=2)
 def _load(path: str, size: int, mtime_ns: int) -> BertWeights:
-    from safetensors import safe_open
+    """The file's tensors as views of a read-only memory map (safetensors: an 8-byte header
+    length, a JSON header of names, dtypes, shapes and byte offsets, then the data), float16
+    or float64 ones turned to float32."""
+    import json
 
     from jaxmotion.text.bert_config import hf_parameter_names
 
     cfg = BertConfig.from_hf(Path(path).parent / "config.json")
-    needed = {name: turn for name, turn in hf_parameter_names(cfg).values() if name != _WORDS}
+    data = np.memmap(path, dtype=np.uint8, mode="r")
+    try:
+        n = int(data[:8].view("<u8")[0])
+        header = json.loads(bytes(data[8:8 + n]))
+    except (ValueError, IndexError) as e:
+        raise ValueError(f"{path}: not a safetensors file ({e})") from None
     tensors = {}
-    with safe_open(path, framework="numpy") as f:
-        missing = sorted(set(needed) - set(f.keys()))
-        if missing:
-            raise ValueError(f"{path} has no tensor {missing[0]!r} (and {len(missing) - 1} "
-                             "more): not a BERT of this configuration")
-        for name, turn in needed.items():
-            t = f.get_tensor(name).astype(np.float64)
-            tensors[name] = np.ascontiguousarray(t.T) if turn else t
+    for name, _turn in hf_parameter_names(cfg).values():
+        info = header.get(name)
+        if info is None:
+            raise ValueError(f"{path} has no tensor {name!r}: not a BERT of this "
+                             "configuration")
+        dtype = _DTYPES.get(info["dtype"])
+        if dtype is None:
+            raise ValueError(f"{path}: tensor {name!r} is {info['dtype']}; the encoder reads "
+                             f"{', '.join(_DTYPES)}")
+        begin, end = (8 + n + int(o) for o in info["data_offsets"])
+        t = data[begin:end].view(np.dtype(dtype).newbyteorder("<")).reshape(info["shape"])
+        tensors[name] = t if dtype == np.float32 else t.astype(np.float32)
     return BertWeights(Path(path), cfg, tensors)
 
 
@@ -100,7 +108,7 @@ def encode_tokens(ids, weights: BertWeights) -> tuple[np.ndarray, np.ndarray]:
         pre = f"encoder.layer.{i}."
 
         def dense(y, name):
-            return y @ w[pre + name + ".weight"] + w[pre + name + ".bias"]
+            return y @ w[pre + name + ".weight"].T + w[pre + name + ".bias"]
 
         def heads(y):  # [T, D] -> [H, T, D/H]
             return y.reshape(t, h, d // h).transpose(1, 0, 2)
@@ -129,4 +137,5 @@ _ERF = np.frompyfunc(math.erf, 1, 1)
 
 def _gelu(x):
     """The exact (erf) GELU, as BERT's ``"gelu"``."""
-    return 0.5 * x * (1.0 + _ERF(x / math.sqrt(2.0)).astype(np.float64))
+    erf = _ERF(x.astype(np.float64) / math.sqrt(2.0)).astype(x.dtype)
+    return 0.5 * x * (1.0 + erf)

@@ -128,6 +128,35 @@ def prefetch(cache_dir: Path | None, name: str, fingerprint: str, specs) -> bool
     return True
 
 
+def when_loaded(fn):
+    """Call ``fn()`` once the programs :func:`prefetch` started have loaded (or failed): on a
+    background thread while some are still loading, else at once on this one. Returns a
+    :class:`~concurrent.futures.Future` of its result (``.result()`` waits for it and raises
+    its exception).
+
+    ``generate`` starts the video's renderer so: its start-up (numba, ~0.5 s of a core)
+    otherwise competes with the executables' loads that the sampling waits for, and fits
+    beside the sampling instead."""
+    import threading
+    from concurrent.futures import Future, wait
+
+    done: Future = Future()
+    loading = [f for f in _PENDING.values() if not f.done()]
+
+    def run():
+        wait(loading)
+        try:
+            done.set_result(fn())
+        except BaseException as e:  # noqa: BLE001 - handed to the caller by .result()
+            done.set_exception(e)
+
+    if loading:
+        threading.Thread(target=run, name="after the programs' loads", daemon=True).start()
+    else:
+        run()
+    return done
+
+
 #: Programs :func:`prefetch` is loading, by artefact path, until :func:`cached_program` takes
 #: them.
 _PENDING: dict = {}

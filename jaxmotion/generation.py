@@ -110,8 +110,8 @@ def generate(scene, text: str = DEFAULT_TEXT, *, options: GenerateOptions | None
       progress: print the stages with their times (to stderr).
       plan, trajectory: a story (steps on object ids, or their JSON file; a text of several
         steps is one too) or a ground path to follow (``[T, 2]`` at 30 fps) (:mod:`.planning`).
-      meanwhile: called (no arguments) once checked and grounded, as the models start to
-        sample: the command line starts loading the video's renderer there.
+      meanwhile: called (no arguments) once grounded and the samplers' programs are loaded
+        (:func:`~jaxmotion.compiled.when_loaded`): the CLI loads the video's renderer there.
     Raises:
       GenerateError: bad text, scene, object id, options or checkpoints (the message names
         the fix), before any model is loaded.
@@ -130,7 +130,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     import jax
 
     from jaxmotion._jax_setup import enable_compilation_cache, seed_key_data
-    from jaxmotion.compiled import digest
+    from jaxmotion.compiled import digest, when_loaded
     from jaxmotion.diffusion.samplers import SamplerSpec
     from jaxmotion.grounding import AdmChooser, explain, find_object, find_region, read_instruction
     from jaxmotion.grounding.region import centre_on_object
@@ -199,8 +199,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         if not models.room_view:
             lap("region")
     understood = explain(room, instruction, chosen, how, opts, echo=progress)  # warns, too
-    meanwhile()
-
+    after_loads = when_loaded(meanwhile)  # the CLI's renderer: beside the sampling
     from jaxmotion.pipelines.checkpoints import pick_pipeline
     pipeline = pick_pipeline(opts.pipeline, models.files, chosen)  # needs a target or not
     if pipeline == "cvae":  # the HUMANISE baseline on the square around the target
@@ -221,6 +220,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         joints, aff, crop, excluded, n_cand, n_mot = _synthesize(
             room, centre, chosen, instruction.anchor_first, text_emb(), opts, models, view, root,
             (adm_sampler, amdm_sampler), aot_dir, versions)
+    after_loads.result()
     lap("sample")
     smplx, err = {}, np.full(k, np.nan, np.float32)
     if pipeline == "object-centric":  # sampled as SMPL-X parameters: the joints are theirs

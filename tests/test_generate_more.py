@@ -163,6 +163,35 @@ def test_a_prefetched_program_is_the_one_called(tmp_path):
     assert C.prefetched() == ()
 
 
+def test_when_loaded_waits_for_the_prefetched_programs(monkeypatch):
+    """when_loaded calls at once with nothing loading; with a load under way, on another
+    thread once it has finished (failed, too); the Future gives the result or the error."""
+    import threading
+    from concurrent.futures import Future
+
+    import jaxmotion.compiled as C
+
+    here = threading.current_thread()
+    assert C.when_loaded(lambda: threading.current_thread() is here).result()
+    loading = Future()
+    monkeypatch.setattr(C, "_PENDING", {"a program": loading})
+    seen = []
+    done = C.when_loaded(lambda: seen.append(threading.current_thread()) or "ran")
+    assert not done.done() and seen == []  # waits for the load
+    loading.set_exception(OSError("a load that failed"))
+    assert done.result(timeout=10) == "ran" and seen[0] is not here
+
+    def broken():
+        raise ValueError("from meanwhile")
+
+    other = Future()
+    monkeypatch.setattr(C, "_PENDING", {"a program": other})
+    failed = C.when_loaded(broken)
+    other.set_result(None)
+    with pytest.raises(ValueError, match="from meanwhile"):
+        failed.result(timeout=10)
+
+
 def test_a_new_sentence_is_encoded_on_the_host(tmp_path, monkeypatch):
     """A sentence not in the embedding cache is encoded in NumPy: no program is kept or
     loaded for it and the batch encoder is never built; the embedding is the batch encoder's

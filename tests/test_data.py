@@ -154,3 +154,41 @@ def test_stats_and_errors(dataset_dir, tmp_path):
     short = Dataset(dataset_dir, "train", CropSpec(num_points=64), max_frames=5)
     with pytest.raises(DatasetError, match="max_frames"):
         next(short.iterate(2, seed=0, prefetch=1))
+
+
+def test_threaded_readers_take_turns_parsing(tmp_path):
+    """The readers that run beside each other (a sample and a scene on training's loader
+    thread, the text caches on the main thread) parse their .npy headers under one lock:
+    while it is held elsewhere they wait, then read (Python 3.11/3.12's parser is not safe on
+    two threads at once)."""
+    import threading
+
+    from jaxmotion._npio import READ_LOCK, load_npz
+    from jaxmotion.text import EmbeddingCache
+
+    rng = np.random.default_rng(2)
+    sample = save_sample(tmp_path / "a.npz", fake_sample(rng, 10))
+    EmbeddingCache(tmp_path / "emb").put(["k"], np.ones((1, 4), np.float32))
+
+    def read_in_turn(read):
+        out, started = [], threading.Event()
+
+        def run():
+            started.set()
+            out.append(read())
+
+        with READ_LOCK:
+            t = threading.Thread(target=run)
+            t.start()
+            started.wait()
+            t.join(0.3)
+            assert out == [], "read while another thread held the lock"
+        t.join(10)
+        assert len(out) == 1
+        return out[0]
+
+    assert read_in_turn(lambda: load_sample(sample))["text"] == load_sample(sample)["text"]
+    assert "k" in read_in_turn(lambda: EmbeddingCache(tmp_path / "emb"))
+    with load_npz(sample) as d:  # the lock is re-entrant: a reader may read inside its block
+        with load_npz(sample) as again:
+            np.testing.assert_array_equal(d["joints"], again["joints"])

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion._atomic import atomic_open
+from jaxmotion._npio import load_npz
 
 __all__ = [
     "ACTIONS",
@@ -105,7 +106,7 @@ def load_sample(path) -> dict:
     if not path.is_file():
         raise DatasetError(f"{path}: no such sample file")
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with load_npz(path, allow_pickle=False) as data:
             raw = {k: data[k] for k in data.files}
     except (OSError, ValueError) as err:
         raise DatasetError(f"{path}: not a readable .npz sample ({err})") from err

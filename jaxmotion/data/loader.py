@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion._atomic import atomic_open
+from jaxmotion._npio import load_npz
 from jaxmotion.data.crop import CropSpec, crop_sample, motion_features
 from jaxmotion.data.format import ACTIONS, DatasetError, load_sample
 
@@ -67,7 +68,7 @@ class _SceneCache:
         path = self.scene_dir / f"{scene_id}.npz"
         if not path.is_file():
             raise DatasetError(f"{path}: scene file missing (referenced by a sample)")
-        with np.load(path, allow_pickle=False) as d:
+        with load_npz(path, allow_pickle=False) as d:
             normal = (d["normal"] if "normal" in d.files else np.zeros_like(d["xyz"]))
             item = (d["xyz"].astype(np.float32), d["rgb"].astype(np.float32), d["instance"],
                     d["semantic"].astype(np.int32), normal.astype(np.float32))
@@ -325,5 +326,5 @@ def load_stats(path) -> Stats:
     path = Path(path)
     if not path.is_file():
         raise DatasetError(f"{path}: statistics not found; run 'jaxmotion synth --stats-only --out {path.parent}'")
-    with np.load(path) as d:
+    with load_npz(path) as d:
         return Stats({k: d[k] for k in d.files})

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion._atomic import atomic_open
+from jaxmotion._npio import load_npz
 
 __all__ = ["MAX_SHARDS", "EmbeddingCache", "TokenCache", "cache_key", "close_shared",
            "dataset_cache_dir", "encode_cached", "pad_tokens"]
@@ -87,7 +88,7 @@ class _ShardCache:
             if shard.name in self._loaded or not self._owns(shard.name):
                 continue
             try:
-                with np.load(shard, allow_pickle=False) as z:
+                with load_npz(shard, allow_pickle=False) as z:
                     entries = list(self._entries(z))
             except FileNotFoundError:  # merged away by another process's compact meanwhile
                 continue

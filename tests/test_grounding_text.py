@@ -396,3 +396,11 @@ def test_peak_object_is_the_most_lit_object_in_the_crop():
     assert lit(maps, inst, hot) == pytest.approx(scores[hot])
     assert peak_object(room, np.full(len(pick), -1), maps) is None
     assert peak_object(room, inst, np.zeros_like(maps)) is None
+
+
+def test_a_missing_class_s_warning_does_not_name_a_way_of_choosing():
+    """With no object of the named class, the warning says the target is chosen as for a text
+    naming none; how (the free floor, or the ADM's map) is the target note's to say."""
+    found = ground_candidates(study(), "walk to the fridge")
+    assert "chosen as for a text that names no object" in found.warnings[0]
+    assert "ADM" not in found.warnings[0]

@@ -323,7 +323,7 @@ def _instead(target, action, r, by_class, warns, objects):
             return found, "action"
     if classes is None:  # with an action that needs one, the caller says there is none
         warns.append(f"there is no {target} in this room (its objects: {_classes(objects)}); "
-                     "the region is where the ADM's map is strongest")
+                     "the target is chosen as for a text that names no object")
     return [], ""
 
 

@@ -3,10 +3,11 @@
 NumPy reads each array's header with :func:`ast.literal_eval`, and Python 3.11 and 3.12 build
 that tree with a counter shared between threads (CPython gh-106905, fixed in 3.13): two
 threads parsing at the same moment can fail with ``SystemError: AST constructor recursion
-depth mismatch``. It was seen once in ``generate`` (since then only its main thread reads
-``.npy`` headers); training reads its samples and scenes on a loader thread while the main
-thread reads the text caches. Those readers go through :func:`load_npz`, which holds
-:data:`READ_LOCK` while a file's headers are parsed, so no two of them parse at once.
+depth mismatch`` (seen once in ``generate``). The readers that can run beside another go
+through :func:`load_npz`, which holds :data:`READ_LOCK` while a file's headers are parsed, so
+no two of them parse at once: training's samples and scenes (its loader thread) and text
+caches (the main thread), and the body's and the skeleton's assets, which ``generate``'s
+video and the files beside it read on two threads.
 """
 
 from __future__ import annotations

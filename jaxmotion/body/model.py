@@ -60,6 +60,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmotion._npio import load_npz
 from jaxmotion.geometry.rotations import axis_angle_to_matrix
 from jaxmotion.geometry.skeleton import (
     NUM_BETAS,
@@ -225,10 +226,10 @@ def _mannequin_assets():
         pkg = resources.files("mannequin")
     except ModuleNotFoundError as err:  # pragma: no cover - dependency missing
         raise ImportError("the wooden body needs 'mannequin-x>=0.3,<0.4'") from err
-    with (pkg / "assets" / "wooden.npz").open("rb") as f, np.load(f) as d:
+    with (pkg / "assets" / "wooden.npz").open("rb") as f, load_npz(f) as d:
         wooden = {k: d[k] for k in ("parents", "faces", "skin_joint_indices", "skin_weights",
                                     "skin_rigid_joint_indices")}  # fmt: skip
-    with (pkg / "assets" / "smplx_calibration.npz").open("rb") as f, np.load(f) as d:
+    with (pkg / "assets" / "smplx_calibration.npz").open("rb") as f, load_npz(f) as d:
         calib = {k: np.asarray(d[k], np.float64) for k in ("joint_rest", "joint_dirs", "hand_mean")}
     return wooden, calib
 
@@ -280,7 +281,7 @@ def mannequin_shape_basis(b0: np.ndarray, cache_root=None) -> tuple[np.ndarray, 
         path = Path(root) / "body" / f"mannequin-{key.hexdigest()[:24]}.npz"
         if path.is_file():
             try:
-                with np.load(path) as d:
+                with load_npz(path) as d:
                     return d["v0"], d["dirs"]
             except (OSError, ValueError, KeyError):  # damaged: rebuilt and rewritten below
                 pass

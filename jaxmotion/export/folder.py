@@ -96,12 +96,6 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
     llm = getattr(res.understanding, "llm", None)
     if llm is not None:  # --grounding llm: the prompts and answers that chose the target
         (tmp / "grounding_llm.json").write_text(json.dumps(llm, indent=1))
-    from jaxmotion.geometry.skeleton import neutral_skeleton
-
-    # read on this thread: a .npy header goes through Python's parser, which Python 3.11 and
-    # 3.12 cannot run on two threads at once (a rare SystemError)
-    neutral_skeleton()
-
     def others():  # the files beside the video, written while its room picture is drawn
         p = res.smplx
         i = int(bvh_sample)

@@ -28,6 +28,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmotion._npio import load_npz
 from jaxmotion.constants import NUM_JOINTS
 from jaxmotion.geometry.rotations import axis_angle_to_matrix, rotate_about_z
 
@@ -119,10 +120,10 @@ def neutral_skeleton() -> Skeleton:
             "jaxmotion needs the 'mannequin-x' package for the SMPL-X rest skeleton: "
             "pip install 'mannequin-x>=0.3,<0.4'"
         ) from err
-    with (pkg / "assets" / "smplx_calibration.npz").open("rb") as f, np.load(f) as data:
+    with (pkg / "assets" / "smplx_calibration.npz").open("rb") as f, load_npz(f) as data:
         rest = np.asarray(data["joint_rest"][:NUM_JOINTS], np.float32)
         dirs = np.asarray(data["joint_dirs"][:NUM_JOINTS, :, :NUM_BETAS], np.float32)
-    with (pkg / "assets" / "wooden.npz").open("rb") as f, np.load(f) as data:
+    with (pkg / "assets" / "wooden.npz").open("rb") as f, load_npz(f) as data:
         names = tuple(str(n) for n in data["joint_names"][:NUM_JOINTS])
         parents = tuple(int(p) for p in data["parents"][:NUM_JOINTS])
     if names != _MANNEQUIN_NAMES or parents != PARENTS:

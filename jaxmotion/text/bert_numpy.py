@@ -31,8 +31,8 @@ class BertWeights:
     their names in the file, float32 as stored (the dense kernels ``[out, in]``, as torch
     keeps them), mapped from the file rather than copied."""
 
-    def __init__(self, path: Path, cfg: BertConfig, tensors: dict[str, np.ndarray]):
-        self.path, self.cfg = Path(path), cfg
+    def __init__(self, cfg: BertConfig, tensors: dict[str, np.ndarray]):
+        self.cfg = cfg
         self._t = tensors
 
     def __getitem__(self, name: str) -> np.ndarray:
@@ -76,7 +76,7 @@ def _load(path: str, size: int, mtime_ns: int) -> BertWeights:
     except (ValueError, IndexError) as e:
         raise ValueError(f"{path}: not a safetensors file ({e})") from None
     tensors = {}
-    for name, _turn in hf_parameter_names(cfg).values():
+    for name, _ in hf_parameter_names(cfg).values():
         info = header.get(name)
         if info is None:
             raise ValueError(f"{path} has no tensor {name!r}: not a BERT of this "
@@ -88,7 +88,7 @@ def _load(path: str, size: int, mtime_ns: int) -> BertWeights:
         begin, end = (8 + n + int(o) for o in info["data_offsets"])
         t = data[begin:end].view(np.dtype(dtype).newbyteorder("<")).reshape(info["shape"])
         tensors[name] = t if dtype == np.float32 else t.astype(np.float32)
-    return BertWeights(Path(path), cfg, tensors)
+    return BertWeights(cfg, tensors)
 
 
 def encode_tokens(ids, weights: BertWeights) -> tuple[np.ndarray, np.ndarray]:

@@ -31,6 +31,18 @@ def _cmd_version(args: argparse.Namespace) -> int:
     return 0
 
 
+def _object_row(o: dict) -> dict:
+    """One object of ``scene info``: id, category, centre and size (m), and the point count
+    and confidence where the table has them."""
+    import numpy as np
+
+    lo, hi = np.asarray(o["bbox_min"], float), np.asarray(o["bbox_max"], float)
+    row = {"id": o["id"], "category": o["category"],
+           "centre": np.round((lo + hi) / 2, 3).tolist(), "size": np.round(hi - lo, 3).tolist()}
+    row.update({k: o[k] for k in ("points", "confidence", "source") if k in o})
+    return row
+
+
 def _cmd_scene_info(args: argparse.Namespace) -> int:
     from jaxmotion.scene import load_scene_and_notes
     from jaxmotion.scene.checks import scene_warnings
@@ -53,14 +65,8 @@ def _cmd_scene_info(args: argparse.Namespace) -> int:
         "instances": int(len(set(scene.instance[scene.instance >= 0].tolist()))),
         "objects": len(scene.objects),
     }
-    from jaxmotion.grounding import object_table
-
-    objects = object_table(scene)
-    if objects:
-        info["object_table"] = [
-            {"id": o["id"], "category": o["category"],
-             "centre": [round(float(a + b) / 2, 3) for a, b in zip(o["bbox_min"], o["bbox_max"])]}
-            for o in objects]
+    if scene.objects:
+        info["object_table"] = [_object_row(o) for o in scene.objects]
     if notes:
         info["notes"] = list(notes)
     for message in scene_warnings(scene):
@@ -205,7 +211,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     import time
     import warnings
 
-    from jaxmotion.export.folder import check_output_folder, summary
+    from jaxmotion.export.folder import check_outputs, summary
     from jaxmotion.generation import generate
     from jaxmotion.options import DEFAULT_TEXT, GenerateOptions
 
@@ -227,7 +233,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         motion_candidates=args.motion_candidates, checkpoints=ckpt, num_points=args.points,
         pipeline=args.pipeline, object_checkpoints=objects,
         cvae_checkpoints=None if not args.cvae else tuple(args.cvae))
-    check_output_folder(args.out)
+    check_outputs(out=args.out, video=None if args.video == "none" else args.video)
     if args.scene != "demo":
         from pathlib import Path
 

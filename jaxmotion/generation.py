@@ -25,8 +25,8 @@ This module only orchestrates; each stage lives in its own module:
    motions: :mod:`jaxmotion.pipelines.affordance`; a known target's class mates kept out);
    ``motion_candidates`` motions per sample, the plausible one reaching the target kept;
    ``pipeline="cvae"``: the HUMANISE baseline (:mod:`jaxmotion.pipelines.cvae`) on the square;
-5. **fit** SMPL-X bodies to the joints (:func:`jaxmotion.body.fit_joints_to_body`); the
-   **result** (:class:`jaxmotion.result.Generation`) writes the files with ``save``.
+5. **fit** SMPL-X bodies to the joints; the **result** (:class:`~jaxmotion.result.Generation`)
+   writes the files with ``save`` (whatever it would refuse is checked before sampling).
 """
 
 from __future__ import annotations
@@ -132,9 +132,10 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     from jaxmotion._jax_setup import enable_compilation_cache, seed_key_data
     from jaxmotion.compiled import digest, when_loaded
     from jaxmotion.diffusion.samplers import SamplerSpec
+    from jaxmotion.export.folder import check_outputs
     from jaxmotion.grounding import AdmChooser, explain, find_object, find_region, read_instruction
     from jaxmotion.grounding.region import centre_on_object
-    from jaxmotion.pipelines.checkpoints import adm_text_tokens
+    from jaxmotion.pipelines.checkpoints import adm_text_tokens, pick_pipeline
     from jaxmotion.pipelines.object_centric import prefetch_sampler
     from jaxmotion.scene.checks import scene_warnings
     from jaxmotion.scene.demo import load_scene_arg
@@ -144,9 +145,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     t0 = [time.perf_counter()]
 
     def lap(name):
-        now = time.perf_counter()
-        times[name] = now - t0[0]
-        t0[0] = now
+        times[name], t0[0] = (now := time.perf_counter()) - t0[0], now
         if progress:
             print(f"  {name:<10} {times[name]:6.2f} s", file=sys.stderr, flush=True)
 
@@ -199,8 +198,8 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
         if not models.room_view:
             lap("region")
     understood = explain(room, instruction, chosen, how, opts, echo=progress)  # warns, too
+    check_outputs(room, [chosen], video=None)  # what saving would refuse, refused before sampling
     after_loads = when_loaded(meanwhile)  # the CLI's renderer: beside the sampling
-    from jaxmotion.pipelines.checkpoints import pick_pipeline
     pipeline = pick_pipeline(opts.pipeline, models.files, chosen)  # needs a target or not
     if pipeline == "cvae":  # the HUMANISE baseline on the square around the target
         from jaxmotion.pipelines import cvae

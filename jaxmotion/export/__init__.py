@@ -21,7 +21,7 @@ naming the argument.
 
 from jaxmotion.export.amass import AMASS_KEYS, write_amass_npz
 from jaxmotion.export.bvh import BVH, read_bvh, write_bvh
-from jaxmotion.export.folder import check_output_folder, summary, write_generation
+from jaxmotion.export.folder import check_output_folder, check_outputs, summary, write_generation
 from jaxmotion.export.gltf import write_glb
 from jaxmotion.export.video import render_frame, render_motion_video
 from jaxmotion.export.viewer import write_viewer_html
@@ -30,6 +30,7 @@ __all__ = [
     "AMASS_KEYS",
     "BVH",
     "check_output_folder",
+    "check_outputs",
     "read_bvh",
     "render_frame",
     "render_motion_video",

@@ -20,7 +20,10 @@ import numpy as np
 from jaxmotion.errors import GenerateError
 from jaxmotion.export._common import random_subset
 
-__all__ = ["check_output_folder", "scene_heat", "summary", "write_generation"]
+__all__ = ["VIDEO_KINDS", "check_output_folder", "check_outputs", "scene_heat", "summary",
+           "write_generation"]
+
+VIDEO_KINDS = (None, "gif", "mp4")
 
 
 def write_generation(res, out, *, video: str | None = "mp4",
@@ -36,11 +39,9 @@ def write_generation(res, out, *, video: str | None = "mp4",
     Files are built in a temporary folder and moved in at the end, so an error leaves no
     half-written output.
     """
-    if video not in (None, "gif", "mp4"):
-        raise GenerateError(f"video must be 'gif', 'mp4' or None, got {video!r}")
-    if not res.smplx:
-        raise GenerateError("this result has no SMPL-X fit (fit=False): BVH and GLB need it")
-    out = check_output_folder(out)
+    ids = [res.target_id, *(g["object"] for g in res.segments)]
+    out = check_outputs(res.scene, ids, out=out, video=video, fit=bool(res.smplx),
+                        sample=bvh_sample, samples=res.num_samples)
     fresh = not out.exists()
     parent = out.parent if fresh else out
     parent.mkdir(parents=True, exist_ok=True)
@@ -127,6 +128,40 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
         render_generation(res, tmp / f"motion.{video}", meanwhile=others)
     else:
         others()
+
+
+def check_outputs(scene=None, ids=(), *, out=None, video: str | None = "mp4", fit: bool = True,
+                  sample: int = 0, samples: int | None = None) -> Path | None:
+    """Every check :func:`write_generation` makes on its inputs, callable before any sampling.
+
+    ``generate`` calls it once the target is known (the scene and ids), the command line
+    before anything is loaded (the folder, the video kind), and :func:`write_generation`
+    again with the result: whatever would fail the writing fails here first, before the
+    work is done. Checks: ``video`` is ``"mp4"``, ``"gif"`` or None; ``fit`` (BVH, GLB and
+    the SMPL-X file need the fitted bodies); every id in ``ids`` (None and −1: no object) is
+    in the scene's object table, the table the viewer and the video label; ``sample`` is one
+    of ``samples``; ``out`` can take the files (:func:`check_output_folder`).
+
+    Returns ``out`` as a :class:`~pathlib.Path` (None when not given); raises
+    :class:`GenerateError` naming the fix.
+    """
+    if video not in VIDEO_KINDS:
+        raise GenerateError(f"video must be 'gif', 'mp4' or None, got {video!r}")
+    if not fit:
+        raise GenerateError("this result has no SMPL-X fit (fit=False): BVH and GLB need it; "
+                            "generate with fit=True to save it")
+    if samples is not None and not (isinstance(sample, (int, np.integer))
+                                    and 0 <= int(sample) < samples):
+        raise GenerateError(f"bvh_sample {sample!r} is not one of the {samples} samples "
+                            f"(0..{samples - 1})")
+    wanted = sorted({int(i) for i in ids if i is not None and int(i) >= 0})
+    if wanted:
+        table = {int(o["id"]) for o in (scene.objects if scene is not None else ())}
+        if missing := [i for i in wanted if i not in table]:
+            listed = ", ".join(f"{o['id']} ({o['category']})" for o in scene.objects) or "none"
+            raise GenerateError(f"object {', '.join(map(str, missing))} is not in the scene's "
+                                f"object table (its objects: {listed}); see jaxmotion scene info")
+    return None if out is None else check_output_folder(out)
 
 
 def check_output_folder(out) -> Path:

@@ -1,8 +1,7 @@
 """The room's objects: its object table, the objects a text names, and their class mates.
 
-A synthetic room or a jaxmotion ``.npz`` carries its object table; for a labelled scan without
-one (per-point ``instance`` and ``semantic`` ids only, e.g. a ScanNet ``.ply``) it is derived
-once per scene (:func:`object_table`, cached on the scene object). Each object is a dict with
+The table is the scene's own (``Scene.objects``: given by the file, or derived from per-point
+``instance`` / ``semantic`` labels once, when the scene is built). Each object is a dict with
 ``id``, ``category``, ``bbox_min`` / ``bbox_max`` (xyz, metres) and, where it has one, ``front``.
 """
 
@@ -10,9 +9,6 @@ from __future__ import annotations
 
 import re
 
-import numpy as np
-
-from jaxmotion.constants import STRUCTURE
 from jaxmotion.errors import GenerateError
 
 __all__ = ["find_object", "mentioned_objects", "object_table", "same_class_others"]
@@ -38,29 +34,10 @@ _ALIASES = {"refrigerator": "fridge", "television": "tv", "night stand": "nights
 
 
 def object_table(room) -> tuple[dict, ...]:
-    """The room's objects; for a labelled scan without a table (per-point ``instance`` and
-    ``semantic`` ids only, e.g. a ScanNet ``.ply``) one is derived: per instance, the xy/z
-    bounding box of its points and the category of its most common semantic id."""
-    if room.objects:
-        return tuple(room.objects)
-    from jaxmotion.scene.furniture import CATEGORY_IDS
-    from jaxmotion.scene.scans import NYU40_CLASSES
-
-    # NYU40 names (ScanNet's label ids); jaxmotion's own categories take precedence for theirs
-    names = {i + 1: n for i, n in enumerate(NYU40_CLASSES)}
-    names.update({v: k for k, v in CATEGORY_IDS.items()})
-    out = []
-    for inst in np.unique(room.instance[room.instance >= 0]):
-        sel = room.instance == inst
-        sem = room.semantic[sel]
-        sem = sem[sem >= 0]
-        cat = names.get(int(np.bincount(sem).argmax()), "object") if len(sem) else "object"
-        if cat in STRUCTURE:
-            continue
-        pts = room.xyz[sel]
-        out.append({"id": int(inst), "category": cat, "bbox_min": pts.min(0).tolist(),
-                    "bbox_max": pts.max(0).tolist()})
-    return tuple(out)
+    """The room's object table: ``room.objects``, the one table of the scene (given by the
+    file, or derived from its per-point labels when the scene was built:
+    :func:`jaxmotion.scene.objects.table_from_labels`)."""
+    return tuple(room.objects)
 
 
 def mentioned_objects(room, text: str) -> list[dict]:

@@ -505,8 +505,11 @@ def story_generation(scene, plan, opts, progress: bool = False, text: str | None
     from jaxmotion.scene.demo import load_scene_arg
 
     t0 = time.perf_counter()
+    from jaxmotion.export.folder import check_outputs
+
     room = load_scene_arg(scene, opts.num_points)
     steps = read_plan(plan, room)
+    check_outputs(room, [s.object for s in steps], video=None)  # as saving will, before sampling
     story = tell(room, steps, seed=opts.seed, files=opts.object_checkpoints, steps=opts.steps,
                  guidance=opts.guidance[1], progress=progress)
     return story_result(story, room, text or describe(steps, room), opts,

@@ -92,7 +92,9 @@ class Scene:
       instance: [N] int32 object instance id, -1 = none (default).
       objects: object table; dicts with ``id`` int, ``category`` str, ``bbox_min`` /
         ``bbox_max`` [3] lists (m, axis-aligned), optional ``surface_height`` float (m)
-        and ``front`` [3] list. Extra JSON-serialisable keys are kept.
+        and ``front`` [3] list. Extra JSON-serialisable keys are kept. When none is given
+        and points carry ``instance`` ids, it is derived from the labels
+        (:func:`jaxmotion.scene.objects.table_from_labels`): the one table every stage uses.
       name: free-form scene name.
     """
 
@@ -119,6 +121,10 @@ class Scene:
         semantic = _checked("semantic", unknown if self.semantic is None else self.semantic, n)
         instance = _checked("instance", unknown if self.instance is None else self.instance, n)
         objects = tuple(_normalise_object(i, o) for i, o in enumerate(self.objects))
+        if not objects and (instance >= 0).any():  # labelled points without a table: derive it
+            from jaxmotion.scene.objects import table_from_labels
+
+            objects = table_from_labels(xyz, semantic, instance)
         ids = [o["id"] for o in objects]
         if len(set(ids)) != len(ids):
             raise ValueError(f"Scene.objects has duplicate ids: {sorted(ids)}")

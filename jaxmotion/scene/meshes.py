@@ -21,6 +21,7 @@ DEFAULT_MESH_POINTS = 100_000
 SEMANTIC_PROPERTIES = ("label",)  # ScanNet / NYU40 per-vertex semantic id
 INSTANCE_PROPERTIES = ("instance", "objectId", "instance_id")
 GREY = 0.5  # the colour of points whose file has none
+_STRUCTURE_IDS = (1, 2, 22)  # NYU40 wall, floor, ceiling (jaxmotion's ids agree)
 
 
 def _ply_vertex_property(geom, names, n):
@@ -57,13 +58,26 @@ def _vertex_colors(geom, n):
     return c[:, :3].astype(np.float64) / (255.0 if c.dtype.kind in "iu" else 1.0)
 
 
+def _unlabelled_group(sem: np.ndarray) -> bool:
+    """Whether the points of one instance id are mostly unannotated or structure (wall,
+    floor, ceiling): the "no object" id of files that count their objects from 1."""
+    other = (sem < 0) | np.isin(sem, _STRUCTURE_IDS)
+    return bool(other.mean() >= 0.5)
+
+
 def vertex_data(geom) -> dict:
     """Per-vertex Scene arrays of one mesh / point cloud (grey, zero normals, -1 if unknown):
-    PLY ``label`` -> semantic, ``instance`` / ``objectId`` / ``instance_id`` -> instance."""
+    PLY ``label`` -> semantic (0, NYU40's "unannotated", -> -1), ``instance`` / ``objectId``
+    / ``instance_id`` -> instance (0 -> -1 when its points are mostly unannotated or
+    structure: the "none" of files that count objects from 1)."""
     n = len(geom.vertices)
     rgb = _vertex_colors(geom, n)
     labels = [_ply_vertex_property(geom, p, n) for p in (SEMANTIC_PROPERTIES, INSTANCE_PROPERTIES)]
     sem, ins = (np.full(n, -1, np.int64) if v is None else v.astype(np.int64) for v in labels)
+    if labels[0] is not None:
+        sem[sem == 0] = -1  # NYU40 / ScanNet label 0: unannotated
+    if labels[1] is not None and (zero := ins == 0).any() and _unlabelled_group(sem[zero]):
+        ins[zero] = -1  # instance 0 as "none" (ScanNet exports count objects from 1)
     normal = [_ply_vertex_property(geom, (c,), n) for c in ("nx", "ny", "nz")]
     normal = np.zeros((n, 3)) if any(c is None for c in normal) else np.stack(normal, 1)
     normal, norms = normal.astype(np.float64), np.linalg.norm(normal, axis=1, keepdims=True)

@@ -17,7 +17,7 @@ import numpy as np
 
 from jaxmotion.constants import STRUCTURE
 
-__all__ = ["category_names", "table_from_labels"]
+__all__ = ["category_ids", "category_names", "table_from_labels"]
 
 
 def category_names() -> dict[int, str]:
@@ -64,3 +64,10 @@ def table_from_labels(xyz: np.ndarray, semantic: np.ndarray,
                     "bbox_min": [float(v) for v in lo[i]], "bbox_max": [float(v) for v in hi[i]],
                     "points": int(c)})
     return tuple(out)
+
+
+def category_ids() -> dict[str, int]:
+    """Category name → semantic id, the inverse of :func:`category_names` (jaxmotion's ids
+    for its categories, NYU40's for the others)."""
+    return {name: i for i, name in sorted(category_names().items(), reverse=True)} | {
+        name: i for i, name in category_names().items() if i > 40}

@@ -37,6 +37,7 @@ from jaxmotion.train.cvae_task import CVAETask
 from jaxmotion.train.data_task import DataTask, dataset_stats
 from jaxmotion.train.evaluator_task import EvaluatorTask
 from jaxmotion.train.object_centric_task import ObjectCentricTask
+from jaxmotion.train.objects_task import ObjectsTask
 from jaxmotion.train.recognizer_task import RecognizerTask
 
 __all__ = ["TASKS", "ADMTask", "AMDMTask", "SegmentationTask", "get_task"]
@@ -365,7 +366,8 @@ class AMDMTask(DataTask):
 
 TASKS = {"segmentation": SegmentationTask, "adm": ADMTask, "amdm": AMDMTask,
          "evaluator": EvaluatorTask, "recognizer": RecognizerTask,
-         "trajectory": ObjectCentricTask, "completion": ObjectCentricTask, "cvae": CVAETask}
+         "trajectory": ObjectCentricTask, "completion": ObjectCentricTask, "cvae": CVAETask,
+         "objects": ObjectsTask}
 
 
 def get_task(cfg):

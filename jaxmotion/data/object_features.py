@@ -1,0 +1,138 @@
+"""Training data of the object classifier: the synthetic rooms' objects as segmentation finds
+them in scans made to look real (host numpy).
+
+Each room (``sample_room(seed)``) is scanned (:func:`~jaxmotion.scene.rooms.room_to_scene`)
+and degraded as real scans are (:func:`degrade`): point density, sensor noise, holes, walls
+missing from a partial scan, undersides and backs unseen, sizes varied; its normals are thrown
+away and estimated from the points, as for a point cloud without them. Segmentation then runs
+as on a user's room (:func:`jaxmotion.scene.segment.find_structure` /
+:func:`~jaxmotion.scene.segment.find_instances`), and each instance found gets the category of
+the true object holding most of its points (``"object"`` when most are clutter or structure)
+and its features (:func:`jaxmotion.scene.segment.object_features`). Colour is never used.
+
+:func:`build_object_features` writes ``features.npz`` (``features [M, F]``, ``labels [M]``,
+``room [M]``, ``categories``) resumably, room by room; the same seeds give the same file.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from jaxmotion._atomic import atomic_open
+
+__all__ = ["CATEGORIES", "FEATURES_VERSION", "build_object_features", "degrade",
+           "room_objects"]
+
+#: The classifier's categories: the synthetic world's objects, and "object" for the rest.
+CATEGORIES = ("cabinet", "bed", "chair", "sofa", "table", "door", "window", "bookshelf",
+              "picture", "desk", "fridge", "tv", "nightstand", "toilet", "sink", "lamp",
+              "armchair", "coffee table", "stool", "object")
+FEATURES_VERSION = "jm-object-features-1"
+
+
+def degrade(scene, rng: np.random.Generator):
+    """``scene`` (a synthetic room's scan) made to look like a real scan: 30k–150k points,
+    noise of up to 1.5 cm, up to 6 holes of 0.2–0.6 m, a wall or two missing (one room in
+    three), undersides unseen (one in two), sizes scaled by ±10 % per axis, no normals."""
+    from jaxmotion.scene.io import Scene
+
+    xyz, n = np.asarray(scene.xyz, np.float64), scene.num_points
+    keep = np.ones(n, bool)
+    if rng.random() < 0.5:  # a scanner rarely sees under tables and seats
+        keep &= scene.normal[:, 2] > -0.5
+    for _ in range(int(rng.integers(0, 7))):
+        c = xyz[rng.integers(n)]
+        keep &= np.linalg.norm(xyz - c, axis=1) > rng.uniform(0.2, 0.6)
+    if rng.random() < 0.33:  # a partial scan: walls facing one or two directions missing
+        wall = (scene.instance < 0) & (scene.semantic == 1)
+        for _ in range(int(rng.integers(1, 3))):
+            d = rng.normal(size=2)
+            d /= np.linalg.norm(d)
+            side = xyz[:, :2] @ d
+            keep &= ~(wall & (side > np.percentile(side[wall], 90)))
+    idx = np.flatnonzero(keep)
+    count = int(min(len(idx), rng.integers(30_000, 150_001)))
+    idx = np.sort(rng.choice(idx, count, replace=False))
+    scale = rng.uniform(0.9, 1.1, 3)
+    out = xyz[idx] * scale + rng.normal(0, rng.uniform(0.0, 0.015), (count, 3))
+    out[:, 2] -= np.percentile(out[scene.semantic[idx] == 2, 2], 50) if (
+        scene.semantic[idx] == 2).any() else 0.0
+    return Scene(out, semantic=scene.semantic[idx], instance=scene.instance[idx],
+                 objects=tuple(dict(o) for o in scene.objects), name=scene.name)
+
+
+def room_objects(scene, seed: int = 0) -> tuple[np.ndarray, list[str], np.ndarray]:
+    """Segment a (degraded) synthetic scan as a user's room is, and label what is found:
+    ``(features [M, F], true categories [M], instance ids [N])``."""
+    from jaxmotion.scene.level import estimate_normals
+    from jaxmotion.scene.segment import NUM_FEATURES, find_instances, find_structure, \
+        object_features
+
+    xyz = np.asarray(scene.xyz, np.float64)
+    normal = estimate_normals(xyz)
+    structure = find_structure(xyz, seed)
+    instance = find_instances(xyz, structure)
+    names = {o["id"]: o["category"] for o in scene.objects}
+    feats, labels = [], []
+    for i in range(int(instance.max()) + 1):
+        sel = instance == i
+        feats.append(object_features(xyz[sel], normal[sel], structure.walls, structure.top))
+        ids, counts = np.unique(scene.instance[sel], return_counts=True)
+        true = ids[np.argmax(counts)]
+        cat = names.get(int(true), "object") if true >= 0 else "object"
+        labels.append(cat if cat in CATEGORIES else "object")
+    return (np.stack(feats) if feats else np.zeros((0, NUM_FEATURES), np.float32), labels,
+            instance)
+
+
+def build_object_features(path, *, rooms: int, seed: int = 0, points: int = 150_000,
+                          progress: bool = False) -> dict:
+    """Write (or complete) ``path`` (``features.npz``) from ``rooms`` synthetic rooms of
+    seeds ``seed .. seed + rooms - 1``; returns its arrays. Resumable: the rooms already in
+    the file are kept (the file is rewritten atomically every 20 rooms)."""
+    from jaxmotion.scene.rooms import room_to_scene, sample_room
+
+    path = Path(path)
+    settings = {"version": FEATURES_VERSION, "seed": seed, "points": points}
+    data = {"features": [], "labels": [], "room": []}
+    if path.is_file():
+        with np.load(path, allow_pickle=False) as z:
+            if json.loads(str(z["settings"])) == settings:
+                data = {"features": list(z["features"]), "labels": list(z["labels"]),
+                        "room": list(z["room"])}
+    done = set(int(r) for r in data["room"])
+    start = max(done) + 1 if done else 0
+
+    def save():
+        with atomic_open(path, "wb") as f:
+            np.savez(f, features=np.asarray(data["features"], np.float32).reshape(
+                -1, _num_features()), labels=np.asarray(data["labels"], np.int64),
+                room=np.asarray(data["room"], np.int64), categories=np.array(CATEGORIES),
+                settings=np.array(json.dumps(settings)))
+
+    for r in range(start, rooms):
+        rng = np.random.default_rng([seed, r])
+        room = sample_room(seed + r)
+        scene = degrade(room_to_scene(room, points, rng), rng)
+        feats, labels, _ = room_objects(scene, seed=r)
+        data["features"].extend(feats)
+        data["labels"].extend(CATEGORIES.index(c) for c in labels)
+        data["room"].extend([r] * len(labels))
+        if (r + 1) % 20 == 0 or r == rooms - 1:
+            save()
+            if progress:
+                print(f"  object features: {r + 1}/{rooms} rooms, {len(data['labels'])} objects",
+                      flush=True)
+    if start >= rooms and not path.is_file():
+        save()
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in ("features", "labels", "room", "categories")}
+
+
+def _num_features() -> int:
+    from jaxmotion.scene.segment import NUM_FEATURES
+
+    return NUM_FEATURES

@@ -1,0 +1,443 @@
+"""Object discovery: an unlabelled room made a labelled one (host numpy + a small classifier).
+
+A room without an object table (a phone scan, a mesh, a plain point cloud) is segmented once,
+after levelling (:mod:`jaxmotion.scene.level`: metres, z-up, floor at z = 0), into the same
+per-point ``semantic`` / ``instance`` labels and object table a labelled scan has, so that
+everything after it (grounding, planning, the pipelines, the viewer, the video) runs unchanged:
+
+1. **structure** (:func:`find_structure`): the floor (the points within
+   :data:`FLOOR_BAND` of z = 0), the ceiling (a horizontal plane at the top holding at least
+   2 % of the points, above 1.8 m) and the walls: vertical planes (RANSAC, two points and the
+   vertical) that rise from near the floor to near the top of the room over at least 0.8 m of
+   length; their points within :data:`PLANE_TOL` are structure, not objects. Partial scans
+   simply have fewer of them.
+2. **instances** (:func:`find_components`): the remaining points above the floor, grouped by
+   connectivity on a :data:`VOXEL` grid (26 neighbours); groups under :data:`MIN_POINTS`
+   points are clutter (no object).
+3. **categories** (:func:`object_features`, :mod:`jaxmotion.models.object_classifier`): each
+   instance is described by its size, its height profile, its horizontal surfaces (heights and
+   areas, from normals estimated on the points: :func:`~jaxmotion.scene.level.estimate_normals`)
+   and its distance to the walls: shape, not colour, so that it transfers to scans whose
+   colours differ from the synthetic rooms' or that have none. A small classifier trained on
+   the synthetic rooms' instances found this way (``configs/objects.py``, shipped as
+   ``jaxmotion/assets/objects.safetensors``) names it, with its probability as the object's
+   ``confidence``; below :data:`MIN_CONFIDENCE` the category is ``"object"``.
+4. **affordances** (:func:`support_surfaces`): a roughly flat surface 0.35–0.65 m high with
+   room for a body is a seat, a long flat one 0.3–0.8 m high a place to lie: they are recorded
+   as ``surface_height`` and ``affords`` (``["sit"]``, ``["sit", "lie"]``), so that "sit" and
+   "lie" find a target whatever the category.
+
+The output is a :class:`~jaxmotion.scene.Scene` with ``semantic`` (floor 2, wall 1, ceiling
+22, an object's category id, −1 unknown), ``instance`` and ``objects`` (``id``, ``category``,
+boxes, ``confidence``, ``points``, ``source = "segment"``, and the surfaces). :func:`
+segment_scene` is deterministic for a given seed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+__all__ = ["CEILING", "FLOOR", "FLOOR_BAND", "MIN_CONFIDENCE", "MIN_POINTS", "PLANE_TOL",
+           "SEGMENT_VERSION", "VOXEL", "WALL", "Structure", "find_components", "find_instances",
+           "find_structure", "split_touching",
+           "object_features", "segment_scene", "support_surfaces"]
+
+SEGMENT_VERSION = "jm-segment-1"  # bump when the labels a room gets change (caches key on it)
+FLOOR, WALL, CEILING = 2, 1, 22  # semantic ids (NYU40 / jaxmotion)
+FLOOR_BAND = 0.03  # m above z = 0 that is floor
+PLANE_TOL = 0.035  # m: a point this close to a wall / ceiling plane belongs to it
+VOXEL = 0.05  # m: connectivity grid of the instances
+MIN_POINTS = 40  # points of the smallest object
+MIN_CONFIDENCE = 0.35  # below this the classifier's category is not used ("object")
+NUM_FEATURES = 28
+_SAMPLE = 20_000
+_TRIALS = 400
+_SEAT = (0.33, 0.68)  # m: the height of a surface one sits on
+_LIE = (0.25, 0.85)  # m: ... lies on (at least 1.5 m long and 0.6 m wide)
+
+
+@dataclasses.dataclass(frozen=True)
+class Structure:
+    """Floor, walls and ceiling of a levelled room: ``label [N]`` (0 other, :data:`FLOOR`,
+    :data:`WALL`, :data:`CEILING`), the wall planes ``walls [W, 3]`` as ``(nx, ny, d)`` with
+    ``x nx + y ny = d``, and ``top`` (the ceiling's height, or the room's 99th percentile z)."""
+
+    label: np.ndarray
+    walls: np.ndarray
+    top: float
+
+
+def find_structure(xyz: np.ndarray, seed: int = 0, max_walls: int = 12) -> Structure:
+    """Floor, ceiling and walls of ``xyz [N, 3]`` (levelled, metres; module docstring)."""
+    xyz = np.asarray(xyz, np.float64)
+    n = len(xyz)
+    label = np.zeros(n, np.int32)
+    label[xyz[:, 2] <= FLOOR_BAND] = FLOOR
+    rng = np.random.default_rng(seed)
+    top = float(np.percentile(xyz[:, 2], 99)) if n else 0.0
+    # the ceiling: the densest 5 cm layer near the top, when it is a plane of the room
+    high = xyz[:, 2] >= top - 0.3
+    if top >= 1.8 and high.any():
+        z = xyz[high, 2]
+        hist, edges = np.histogram(z, bins=np.arange(z.min(), z.max() + 0.05, 0.025))
+        if len(hist):
+            peak = edges[int(np.argmax(hist))] + 0.0125
+            on = np.abs(xyz[:, 2] - peak) <= PLANE_TOL
+            if on.sum() >= 0.02 * n:
+                label[on & (label == 0)] = CEILING
+                top = float(np.median(xyz[on, 2]))
+    # walls: vertical planes from near the floor to near the top
+    cand = np.flatnonzero((label == 0) & (xyz[:, 2] > 0.1))
+    walls = []
+    for _ in range(max_walls):
+        if len(cand) < 0.01 * n or len(cand) < 50:
+            break
+        sub = cand[rng.choice(len(cand), min(len(cand), _SAMPLE), replace=False)]
+        pts = xyz[sub, :2]
+        pairs = rng.integers(0, len(pts), (_TRIALS, 2))
+        d = pts[pairs[:, 1]] - pts[pairs[:, 0]]
+        length = np.linalg.norm(d, axis=1)
+        ok = length > 0.3
+        if not ok.any():
+            break
+        nrm = np.stack([-d[ok, 1], d[ok, 0]], 1) / length[ok, None]
+        off = np.einsum("mc,mc->m", nrm, pts[pairs[ok, 0]])
+        counts = (np.abs(pts @ nrm.T - off) <= PLANE_TOL).sum(0)
+        best = int(np.argmax(counts))
+        nb, ob = nrm[best], off[best]
+        inl = cand[np.abs(xyz[cand, :2] @ nb - ob) <= PLANE_TOL]
+        if len(inl) < 3:
+            break
+        c = xyz[inl, :2].mean(0)  # refit the line on its inliers
+        w = np.linalg.eigh(np.cov((xyz[inl, :2] - c).T))[1][:, 0]
+        nb, ob = w, float(c @ w)
+        inl = cand[np.abs(xyz[cand, :2] @ nb - ob) <= PLANE_TOL]
+        z = xyz[inl, 2]
+        along = xyz[inl, :2] @ np.array([-nb[1], nb[0]])
+        rises = (np.percentile(z, 97) >= 0.8 * top and np.percentile(z, 3) <= 0.5
+                 and np.percentile(z, 97) - np.percentile(z, 3) >= min(1.2, 0.6 * top))
+        long_enough = np.percentile(along, 98) - np.percentile(along, 2) >= 0.8
+        if len(inl) < 0.01 * n:
+            break
+        if rises and long_enough:
+            label[inl] = WALL
+            walls.append((nb[0], nb[1], ob))
+        # tried either way: a plane that is not a wall is not tried again
+        cand = np.setdiff1d(cand, inl, assume_unique=True)
+    return Structure(label, np.asarray(walls, np.float64).reshape(-1, 3), top)
+
+
+def find_components(xyz: np.ndarray, mask: np.ndarray, voxel: float = VOXEL,
+                    min_points: int = MIN_POINTS) -> np.ndarray:
+    """``[N]`` int: the connected group of each point of ``mask`` on a ``voxel`` grid (26
+    neighbours), numbered from 0 by position (x, then y, of their centres); −1 for points
+    outside ``mask`` or in groups under ``min_points`` points."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    out = np.full(len(xyz), -1, np.int64)
+    idx = np.flatnonzero(mask)
+    if not len(idx):
+        return out
+    cell = np.floor(np.asarray(xyz)[idx] / voxel).astype(np.int64)
+    cell -= cell.min(0)
+    dims = cell.max(0) + 3
+    key = ((cell[:, 0] + 1) * dims[1] + cell[:, 1] + 1) * dims[2] + cell[:, 2] + 1
+    cells, inverse = np.unique(key, return_inverse=True)
+    rows, cols = [], []
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            for dz in (-1, 0, 1):
+                if (dx, dy, dz) <= (0, 0, 0):
+                    continue  # each neighbour pair once
+                other = cells + (dx * dims[1] + dy) * dims[2] + dz
+                pos = np.searchsorted(cells, other)
+                hit = (pos < len(cells)) & (cells[np.minimum(pos, len(cells) - 1)] == other)
+                rows.append(np.flatnonzero(hit))
+                cols.append(pos[hit])
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    graph = coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(len(cells), len(cells)))
+    _, comp = connected_components(graph, directed=False)
+    point_comp = comp[inverse]
+    sizes = np.bincount(point_comp)
+    keep = np.flatnonzero(sizes >= min_points)
+    if not len(keep):
+        return out
+    centres = np.stack([np.bincount(point_comp, np.asarray(xyz)[idx, a])[keep] / sizes[keep]
+                        for a in range(2)], 1)
+    order = keep[np.lexsort((np.round(centres[:, 1], 2), np.round(centres[:, 0], 2)))]
+    new = np.full(len(sizes), -1, np.int64)
+    new[order] = np.arange(len(order))
+    out[idx] = new[point_comp]
+    return out
+
+
+def find_instances(xyz: np.ndarray, structure: Structure, split: bool = True) -> np.ndarray:
+    """``[N]`` instance ids of a levelled room (−1: none): :func:`find_components` of the
+    points that are not structure, each split where objects touch (:func:`split_touching`,
+    unless ``split`` is False), then the wall points an object stands against given back
+    to it (within 4 cm of its points and inside its box grown by 4 cm: the back of a cabinet
+    or a bookshelf, which lies in the wall's plane)."""
+    from scipy.spatial import cKDTree
+
+    xyz = np.asarray(xyz, np.float64)
+    instance = find_components(xyz, (structure.label == 0) & (xyz[:, 2] > FLOOR_BAND))
+    if split:  # objects that touch, told apart from above
+        out, count = np.full_like(instance, -1), 0
+        for i in range(int(instance.max()) + 1):
+            sel = np.flatnonzero(instance == i)
+            part = split_touching(xyz[sel])
+            sizes = np.bincount(part)
+            part = np.where(sizes[part] >= MIN_POINTS, part, -1)
+            keep = np.unique(part[part >= 0])
+            remap = np.full(len(sizes), -1)
+            remap[keep] = np.arange(count, count + len(keep))
+            out[sel] = np.where(part >= 0, remap[np.maximum(part, 0)], -1)
+            count += len(keep)
+        instance = out
+    wall = np.flatnonzero(structure.label == WALL)
+    mine = np.flatnonzero(instance >= 0)
+    if not len(wall) or not len(mine):
+        return instance
+    d, j = cKDTree(xyz[mine]).query(xyz[wall], distance_upper_bound=0.04)
+    near = np.isfinite(d)
+    cand, owner = wall[near], instance[mine[j[near]]]
+    count = int(instance.max()) + 1
+    lo = np.full((count, 3), np.inf)
+    hi = np.full((count, 3), -np.inf)
+    np.minimum.at(lo, instance[mine], xyz[mine])
+    np.maximum.at(hi, instance[mine], xyz[mine])
+    inside = np.all((xyz[cand] >= lo[owner] - 0.04) & (xyz[cand] <= hi[owner] + 0.04), axis=1)
+    instance[cand[inside]] = owner[inside]
+    structure.label[cand[inside]] = 0
+    return instance
+
+
+def split_touching(xyz: np.ndarray, cell: float = VOXEL, step: float = 0.08,
+                   thin: float = 0.25, small: float = 0.06) -> np.ndarray:
+    """``[M]`` part ids of one connected group's points ``xyz [M, 3]``: objects that touch
+    (a chair against a table, a sofa against a bookshelf, a toilet against a sink) told
+    apart from above. The group's top-view cells (``cell`` m) are joined where their top
+    heights differ by at most ``step``; then a part thinner than ``thin`` m (a backrest, an
+    armrest, a headboard, a cistern: twice its largest inscribed radius) joins the lowest
+    lower part it touches (the seat it rises from), and a part under ``small`` m² the part it shares the longest border with. One
+    object gives one part."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    xyz = np.asarray(xyz, np.float64)
+    ij = np.floor(xyz[:, :2] / cell).astype(np.int64)
+    ij -= ij.min(0)
+    width = int(ij[:, 1].max()) + 3
+    key = (ij[:, 0] + 1) * width + ij[:, 1] + 1
+    cells, inverse = np.unique(key, return_inverse=True)
+    if len(cells) < 8:
+        return np.zeros(len(xyz), np.int64)
+    top = np.full(len(cells), -np.inf)
+    np.maximum.at(top, inverse, xyz[:, 2])
+    pairs = []
+    for dx, dy in ((1, -1), (1, 0), (1, 1), (0, 1)):
+        other = cells + dx * width + dy
+        pos = np.searchsorted(cells, other)
+        hit = (pos < len(cells)) & (cells[np.minimum(pos, len(cells) - 1)] == other)
+        pairs.append(np.stack([np.flatnonzero(hit), pos[hit]], 1))
+    pairs = np.concatenate(pairs)
+    close = np.abs(top[pairs[:, 0]] - top[pairs[:, 1]]) <= step
+    g = coo_matrix((np.ones(close.sum()), (pairs[close, 0], pairs[close, 1])),
+                   shape=(len(cells),) * 2)
+    region = connected_components(g, directed=False)[1]
+
+    grid = np.stack([cells // width, cells % width], 1)
+
+    def stats(r):
+        """(top, area m², width m: twice the largest distance from a cell to the outside)"""
+        from scipy.ndimage import distance_transform_edt
+
+        g = grid[region == r]
+        lo = g.min(0)
+        mask = np.zeros(tuple(g.max(0) - lo + 3), bool)
+        mask[tuple((g - lo + 1).T)] = True
+        w = 2.0 * float(distance_transform_edt(mask).max()) * cell
+        return float(np.median(top[region == r])), len(g) * cell * cell, w
+
+    while True:
+        ids = np.unique(region)
+        if len(ids) == 1:
+            break
+        a, b = region[pairs[:, 0]], region[pairs[:, 1]]
+        cross = a != b
+        border: dict = {}
+        for x, y in zip(a[cross], b[cross]):
+            border[x, y] = border.get((x, y), 0) + 1
+            border[y, x] = border.get((y, x), 0) + 1
+        info = {r: stats(r) for r in ids}
+        merged = False
+        # the smallest offending part first: tiny fragments, then thin parts
+        for r in sorted(ids, key=lambda r: info[r][1]):
+            nbrs = [y for (x, y) in border if x == r]
+            if not nbrs:
+                continue
+            h, area, w = info[r]
+            if area < small:
+                into = max(nbrs, key=lambda y: border[r, y])
+            elif w <= thin and (lower := [y for y in nbrs if info[y][0] < h]):
+                into = min(lower, key=lambda y: (info[y][0], -border[r, y]))
+            else:
+                continue
+            region[region == r] = into
+            merged = True
+            break
+        if not merged:
+            break
+    return np.unique(region, return_inverse=True)[1][inverse]
+
+
+def _layers(z: np.ndarray, xy: np.ndarray, cell: float = VOXEL) -> list[tuple[float, float]]:
+    """Horizontal layers of up-facing points: ``(height, area m²)`` of the 2 cm bins that hold
+    the most xy cells, largest first (at most 2, 10 cm apart)."""
+    if not len(z):
+        return []
+    bins = np.round(z / 0.02).astype(np.int64)
+    cells = np.floor(xy / cell).astype(np.int64)
+    key = np.unique(np.stack([bins, cells[:, 0], cells[:, 1]], 1), axis=0)
+    b, counts = np.unique(key[:, 0], return_counts=True)
+    # a layer is a bin with its neighbours (a seat cushion is not perfectly flat)
+    smooth = np.array([counts[np.abs(b - x) <= 1].sum() for x in b])
+    out = []
+    for i in np.argsort(-smooth, kind="stable"):
+        h = float(b[i] * 0.02)
+        if all(abs(h - o[0]) >= 0.1 for o in out):
+            out.append((h, float(smooth[i] * cell * cell)))
+        if len(out) == 2:
+            break
+    return out
+
+
+def object_features(xyz: np.ndarray, normal: np.ndarray, walls: np.ndarray,
+                    top: float) -> np.ndarray:
+    """The :data:`NUM_FEATURES` shape descriptors of one object's points ``xyz [M, 3]`` with
+    their normals ``[M, 3]`` in a levelled room whose wall planes are ``walls [W, 3]`` and top
+    ``top`` (metres): box (heights, footprint's principal extents, area), height profile,
+    horizontal surfaces (the two largest up-facing layers), share of vertical surfaces, distance
+    to the nearest wall. Float32."""
+    xyz = np.asarray(xyz, np.float64)
+    z = xyz[:, 2]
+    zmin, zmax = float(np.percentile(z, 1)), float(np.percentile(z, 99))
+    xy = xyz[:, :2] - xyz[:, :2].mean(0)
+    if len(xy) >= 3:
+        axes = np.linalg.eigh(np.cov(xy.T) + 1e-9 * np.eye(2))[1][:, ::-1]
+    else:
+        axes = np.eye(2)
+    proj = xy @ axes
+    ext = np.percentile(proj, 98, 0) - np.percentile(proj, 2, 0)
+    long, short = float(max(ext)), float(min(ext))
+    cells = np.unique(np.floor(xyz[:, :2] / VOXEL).astype(np.int64), axis=0)
+    area = len(cells) * VOXEL * VOXEL
+    edges = np.array([0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.3, 1.7, np.inf])
+    prof = np.histogram(z, edges)[0] / len(z)
+    nz = np.asarray(normal)[:, 2]
+    up = nz >= 0.8
+    layers = _layers(z[up], xyz[up, :2]) + [(0.0, 0.0)] * 2
+    side = float(np.mean(np.abs(nz) < 0.3))
+    if len(walls):
+        dist = np.abs(xyz[:, :2] @ walls[:, :2].T - walls[:, 2])
+        near_wall = float(min(dist.min(), 3.0))
+        centre_wall = float(min(np.abs(xyz[:, :2].mean(0) @ walls[:, :2].T - walls[:, 2]).min(),
+                                3.0))
+    else:
+        near_wall = centre_wall = 3.0
+    top_share = float(np.mean(z >= zmax - 0.05))
+    com = float((z.mean() - zmin) / max(zmax - zmin, 1e-3))
+    return np.array([
+        zmin, zmax, zmax - zmin, long, short, long * short, area,
+        area / max(long * short, 1e-3), short / max(long, 1e-3), *prof,
+        float(up.mean()), side, layers[0][0], layers[0][1], layers[1][0], layers[1][1],
+        near_wall, centre_wall, top_share, com, min(top, 4.0)], np.float32)
+
+
+def support_surfaces(xyz: np.ndarray, normal: np.ndarray) -> dict:
+    """What an object's points afford: ``{"surface_height": h, "affords": [...]}`` for a
+    surface one can sit on (a layer of up-facing points 0.33–0.68 m high with a 0.35 m square
+    of it) or lie on (0.25–0.85 m, 1.5 m × 0.6 m), else ``{}``."""
+    up = np.asarray(normal)[:, 2] >= 0.8
+    out: dict = {}
+    for h, _area in _layers(np.asarray(xyz)[up, 2], np.asarray(xyz)[up, :2]):
+        layer = up & (np.abs(np.asarray(xyz)[:, 2] - h) <= 0.04)
+        pts = np.asarray(xyz)[layer, :2]
+        if len(pts) < 10:
+            continue
+        c = pts - pts.mean(0)
+        axes = np.linalg.eigh(np.cov(c.T) + 1e-9 * np.eye(2))[1]
+        ext = np.sort(np.percentile(c @ axes, 95, 0) - np.percentile(c @ axes, 5, 0))
+        affords = []
+        if _SEAT[0] <= h <= _SEAT[1] and ext[0] >= 0.3:
+            affords.append("sit")
+        if _LIE[0] <= h <= _LIE[1] and ext[1] >= 1.5 and ext[0] >= 0.6:
+            affords.append("lie")
+        if affords:
+            out = {"surface_height": round(float(h), 3), "affords": affords}
+            break
+    return out
+
+
+def segment_scene(scene, *, seed: int = 0, classifier=None):
+    """``scene`` (levelled) with discovered labels and object table, and notes for the user.
+
+    Args:
+      scene: a :class:`~jaxmotion.scene.Scene` in metres, z-up, floor at z = 0.
+      seed: the planes' random draws.
+      classifier: a callable ``features [M, F] -> probabilities [M, C]`` with a
+        ``categories`` tuple, or None for the shipped one
+        (:func:`jaxmotion.models.object_classifier.load_object_classifier`).
+    Returns ``(scene, notes)``.
+    """
+    from jaxmotion.scene.level import estimate_normals
+    from jaxmotion.scene.objects import category_ids
+
+    xyz = np.asarray(scene.xyz, np.float64)
+    if scene.num_points < 50:
+        return scene, ("the room has too few points to find objects in",)
+    normal = estimate_normals(xyz)
+    structure = find_structure(xyz, seed)
+    instance = find_instances(xyz, structure)
+    count = int(instance.max()) + 1
+    feats = np.stack([object_features(xyz[instance == i], normal[instance == i],
+                                      structure.walls, structure.top) for i in range(count)]) \
+        if count else np.zeros((0, NUM_FEATURES), np.float32)
+    if classifier is None:
+        from jaxmotion.models.object_classifier import load_object_classifier
+
+        classifier = load_object_classifier()
+    probs = classifier(feats) if count else np.zeros((0, len(classifier.categories)))
+    ids = category_ids()
+    semantic = np.where(structure.label > 0, structure.label, -1).astype(np.int64)
+    objects, named = [], 0
+    for i in range(count):
+        sel = instance == i
+        best = int(np.argmax(probs[i]))
+        conf = float(probs[i, best])
+        cat = classifier.categories[best]
+        if conf < MIN_CONFIDENCE or cat == "object":
+            cat = "object"
+        else:
+            named += 1
+        semantic[sel] = ids.get(cat, -1)
+        pts = xyz[sel]
+        obj = {"id": i, "category": cat, "bbox_min": pts.min(0).tolist(),
+               "bbox_max": pts.max(0).tolist(), "confidence": round(conf, 3),
+               "points": int(sel.sum()), "source": "segment",
+               **support_surfaces(pts, normal[sel])}
+        objects.append(obj)
+    notes = (f"objects found in the unlabelled room: {count} ({named} named by the shape "
+             f"classifier; floor, {len(structure.walls)} wall plane(s)"
+             f"{', ceiling' if (structure.label == CEILING).any() else ''})",)
+    unnamed = [o for o in objects if o["category"] == "object" and o.get("affords")]
+    if unnamed:
+        notes += (f"{len(unnamed)} unnamed object(s) afford sitting or lying (a flat surface "
+                  "at seat or bed height): they can be the target of 'sit' / 'lie'",)
+    out = dataclasses.replace(scene, normal=np.where(
+        (np.abs(scene.normal).sum(1) > 0)[:, None], scene.normal, normal),
+        semantic=semantic, instance=instance, objects=tuple(objects))
+    return out, notes

@@ -22,7 +22,7 @@ from jaxmotion.train.config import OptimConfig, TrainConfig
 @dataclasses.dataclass(frozen=True)
 class ObjectsTrainConfig(TrainConfig):
     """Adds ``rooms`` (synthetic rooms scanned for data, seeds ``room_seed ..``), their
-    ``room_points`` before degradation, ``val_rooms`` (the last ones: validation) and the
+    ``room_points`` before degradation (built on ``loader_workers`` processes), ``val_rooms`` (the last ones: validation) and the
     cross-entropy's ``label_smoothing``."""
 
     task: str = "objects"
@@ -31,10 +31,11 @@ class ObjectsTrainConfig(TrainConfig):
     batch_size: int = 128
     eval_every: int = 500
     ckpt_every: int = 1000
-    rooms: int = 400
+    rooms: int = 240
     room_seed: int = 100_000
-    room_points: int = 150_000
-    val_rooms: int = 40
+    room_points: int = 80_000
+    loader_workers: int = 2
+    val_rooms: int = 24
     label_smoothing: float = 0.05
     model: ObjectClassifierConfig = dataclasses.field(default_factory=ObjectClassifierConfig)
     optim: OptimConfig = dataclasses.field(

@@ -43,17 +43,22 @@ def _object_row(o: dict) -> dict:
     return row
 
 
-def _cmd_scene_info(args: argparse.Namespace) -> int:
-    from jaxmotion.scene import load_scene_and_notes
-    from jaxmotion.scene.checks import scene_warnings
-    from jaxmotion.scene.demo import demo_scene
+def _prepared(args: argparse.Namespace):
+    """The room of ``scene info`` / ``scene segment``: levelled and labelled as ``generate``
+    makes it (:func:`jaxmotion.scene.prepare.prepare_room`)."""
+    from jaxmotion.scene.prepare import prepare_room
 
-    notes = ()
-    if args.path == "demo":
-        scene = demo_scene()
-    else:
-        scene, notes = load_scene_and_notes(args.path, num_points=args.points, seed=args.seed,
-                                            up=args.up)
+    return prepare_room(args.path, num_points=args.points, seed=args.seed, up=args.up,
+                        unit=args.unit)
+
+
+def _cmd_scene_info(args: argparse.Namespace) -> int:
+    from jaxmotion.scene.checks import scene_warnings
+
+    room = _prepared(args)
+    scene, notes = room.scene, room.notes
+    if scene.num_points == 0:
+        raise ValueError(f"{args.path}: the scene has no points")
     lo, hi = scene.bounds()
     info = {
         "name": scene.name,
@@ -64,6 +69,7 @@ def _cmd_scene_info(args: argparse.Namespace) -> int:
         "labelled_points": int((scene.semantic >= 0).sum()),
         "instances": int(len(set(scene.instance[scene.instance >= 0].tolist()))),
         "objects": len(scene.objects),
+        "labels": room.labels,
     }
     if scene.objects:
         info["object_table"] = [_object_row(o) for o in scene.objects]
@@ -72,6 +78,23 @@ def _cmd_scene_info(args: argparse.Namespace) -> int:
     for message in scene_warnings(scene):
         print(f"warning: {message}", file=sys.stderr)
     print(json.dumps(info, indent=2))
+    return 0
+
+
+def _cmd_scene_segment(args: argparse.Namespace) -> int:
+    from jaxmotion.scene import save_scene
+    from jaxmotion.scene.io import save_scene_ply
+
+    if not str(args.out).lower().endswith((".npz", ".ply")):
+        raise ValueError(f"--out {args.out}: give a .npz or .ply file name")
+    room = _prepared(args)
+    out = (save_scene if str(args.out).lower().endswith(".npz") else save_scene_ply)(
+        room.scene, args.out)
+    for note in room.notes:
+        print(f"note: {note}", file=sys.stderr)
+    rows = [_object_row(o) for o in room.scene.objects]
+    print(json.dumps({"out": str(out), "points": room.scene.num_points, "labels": room.labels,
+                      "objects": rows, "notes": list(room.notes)}, indent=1))
     return 0
 
 
@@ -231,7 +254,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         adm_steps=args.adm_steps, guidance=args.guidance, consistency=args.consistency,
         grounding=args.grounding, adm_candidates=args.adm_candidates,
         motion_candidates=args.motion_candidates, checkpoints=ckpt, num_points=args.points,
-        pipeline=args.pipeline, object_checkpoints=objects,
+        pipeline=args.pipeline, object_checkpoints=objects, up=args.up, unit=args.unit,
         cvae_checkpoints=None if not args.cvae else tuple(args.cvae))
     check_outputs(out=args.out, video=None if args.video == "none" else args.video)
     if args.scene != "demo":
@@ -269,15 +292,21 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         warnings.simplefilter("always", UserWarning)
         res = generate(args.scene, text, options=options, progress=True, plan=args.plan,
                        trajectory=trajectory, meanwhile=prepare)
-    for w in caught:
-        print(f"warning: {w.message}", file=sys.stderr)
+    from jaxmotion.errors import SceneNote
+
+    notes = [str(w.message) for w in caught if issubclass(w.category, SceneNote)]
+    warned = [str(w.message) for w in caught if not issubclass(w.category, SceneNote)]
+    for message in notes:
+        print(f"note: {message}", file=sys.stderr)
+    for message in warned:
+        print(f"warning: {message}", file=sys.stderr)
     t1 = time.perf_counter()
     files = res.save(args.out, video=None if args.video == "none" else args.video)
     res.timings["write"] = time.perf_counter() - t1
     print(f"  {'write':<10} {res.timings['write']:6.2f} s", file=sys.stderr)
     print(f"wrote {', '.join(sorted(files))} to {args.out} in {time.perf_counter() - t0:.1f} s",
           file=sys.stderr)
-    print(summary(res), flush=True)
+    print(summary(res, notes, warned), flush=True)
     return 0
 
 
@@ -385,7 +414,10 @@ def build_parser() -> argparse.ArgumentParser:
     def scene_common(q):
         q.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
         q.add_argument("--seed", type=int, default=0, help="sampling seed")
-        q.add_argument("--up", choices=("auto", "z", "y"), default="auto", help="up axis of the file")
+        q.add_argument("--up", choices=("auto", "z", "y"), default="auto",
+                       help="up axis of the file (default auto: found from its floor)")
+        q.add_argument("--unit", choices=("auto", "m", "cm", "mm", "ft", "in"), default="auto",
+                       help="length unit of the file (default auto: from the room's size)")
 
     q = scene_sub.add_parser("info", help="load a scene and print a summary as JSON")
     q.add_argument("path", help="PLY / OBJ / GLB / GLTF / OFF / STL / NPZ file, a ScanNet scan "
@@ -393,6 +425,16 @@ def build_parser() -> argparse.ArgumentParser:
                    "PROX scenes/<Name>.ply, or 'demo'")
     scene_common(q)
     q.set_defaults(func=_cmd_scene_info)
+
+    q = scene_sub.add_parser(
+        "segment", help="find the floor, walls and objects of a room without labels and write "
+        "it labelled (.npz with the object table, or .ply with label / instance)")
+    q.add_argument("path", help="a mesh or point cloud without object labels (PLY / OBJ / GLB "
+                   "/ GLTF / OFF / STL), or any scene file")
+    q.add_argument("--out", required=True, help="the labelled room: .npz (read by generate "
+                   "and scene info, with categories and confidences) or .ply")
+    scene_common(q)
+    q.set_defaults(func=_cmd_scene_segment)
 
     q = scene_sub.add_parser("convert", help="load a scene and save it as jaxmotion .npz")
     q.add_argument("src", help="input mesh or point cloud, or a ScanNet scan folder")
@@ -571,6 +613,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "map and keep the one whose body comes closest to the object at the anchor "
                    "frame (default 4, at most 16; 1 = one motion)")
     p.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
+    p.add_argument("--up", choices=("auto", "z", "y"), default="auto",
+                   help="the room file's up axis (default auto: found from its floor, which "
+                   "is then levelled and moved to z = 0)")
+    p.add_argument("--unit", choices=("auto", "m", "cm", "mm", "ft", "in"), default="auto",
+                   help="the room file's length unit (default auto: from the room's size)")
     p.add_argument("--checkpoints", nargs="+", default=None, metavar="PATH",
                    help="a folder with adm.safetensors and amdm.safetensors (and optionally "
                    "adm_text.safetensors, the ADM used when no target object is known), or the "

@@ -7,7 +7,7 @@ prints the message on one line and exits with code 2, without a traceback.
 
 from __future__ import annotations
 
-__all__ = ["GenerateError", "SceneError"]
+__all__ = ["GenerateError", "SceneError", "SceneNote"]
 
 
 class GenerateError(ValueError):
@@ -17,3 +17,8 @@ class GenerateError(ValueError):
 class SceneError(ValueError):
     """A scene file or scan folder is missing, unsupported, unreadable or holds no usable
     geometry; the message names the file and the fix."""
+
+
+class SceneNote(UserWarning):
+    """What preparing a room did (a unit read, an up axis found, the floor moved, objects
+    found): a note, not a fault; the command line lists these under the summary's ``notes``."""

@@ -156,7 +156,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     if models.files and opts.pipeline in ("auto", "object-centric"):  # loads while grounding
         prefetch_sampler(opts, models.files, root, aot_dir, versions)
     texts = xla_cache / "text-embeddings"
-    room = load_scene_arg(scene, opts.num_points)
+    room = load_scene_arg(scene, opts.num_points, up=opts.up, unit=opts.unit)
     if room.num_points == 0:
         raise GenerateError("the scene has no points")
     for message in scene_warnings(room):

@@ -137,6 +137,9 @@ class GenerateOptions:
         (action-specific and / or action-agnostic models); none ship, so the cvae pipeline
         needs them.
       num_points: surface samples taken from a mesh (None: the loader's default).
+      up: the room file's up axis: ``auto`` (found from its floor), ``z`` or ``y``; unit: its
+        length unit, ``auto`` (from its size) or ``m`` / ``cm`` / ``mm`` / ``ft`` / ``in``
+        (:mod:`jaxmotion.scene.level`).
       fit: fit SMPL-X bodies (needed to write BVH / GLB); fit_iters: LBFGS iterations.
       aot: keep the traced programs on disk (:mod:`jaxmotion.compiled`).
     """
@@ -156,6 +159,8 @@ class GenerateOptions:
     object_checkpoints: str | Path | tuple | None = None
     cvae_checkpoints: str | Path | tuple | None = None
     num_points: int | None = None
+    up: str = "auto"
+    unit: str = "auto"
     fit: bool = True
     fit_iters: int = 100
     aot: bool = True
@@ -184,6 +189,10 @@ class GenerateOptions:
         if self.num_points is not None:
             put("num_points", check_positive_int("num_points", self.num_points, 1))
         put("fit_iters", check_positive_int("fit_iters", self.fit_iters))
+        if self.up not in ("auto", "z", "y"):
+            raise GenerateError(f"up must be auto, z or y, got {self.up!r}")
+        if self.unit not in ("auto", "m", "cm", "mm", "ft", "in"):
+            raise GenerateError(f"unit must be auto, m, cm, mm, ft or in, got {self.unit!r}")
         if isinstance(self.checkpoints, list):
             put("checkpoints", tuple(self.checkpoints))
         if isinstance(self.object_checkpoints, list):

@@ -34,7 +34,7 @@ FEATURES_VERSION = "jm-object-features-1"
 
 
 def degrade(scene, rng: np.random.Generator):
-    """``scene`` (a synthetic room's scan) made to look like a real scan: 30k–150k points,
+    """``scene`` (a synthetic room's scan) made to look like a real scan: 30k–80k points,
     noise of up to 1.5 cm, up to 6 holes of 0.2–0.6 m, a wall or two missing (one room in
     three), undersides unseen (one in two), sizes scaled by ±10 % per axis, no normals."""
     from jaxmotion.scene.io import Scene
@@ -54,7 +54,7 @@ def degrade(scene, rng: np.random.Generator):
             side = xyz[:, :2] @ d
             keep &= ~(wall & (side > np.percentile(side[wall], 90)))
     idx = np.flatnonzero(keep)
-    count = int(min(len(idx), rng.integers(30_000, 150_001)))
+    count = int(min(len(idx), rng.integers(30_000, 80_001)))
     idx = np.sort(rng.choice(idx, count, replace=False))
     scale = rng.uniform(0.9, 1.1, 3)
     out = xyz[idx] * scale + rng.normal(0, rng.uniform(0.0, 0.015), (count, 3))
@@ -88,13 +88,12 @@ def room_objects(scene, seed: int = 0) -> tuple[np.ndarray, list[str], np.ndarra
             instance)
 
 
-def build_object_features(path, *, rooms: int, seed: int = 0, points: int = 150_000,
-                          progress: bool = False) -> dict:
+def build_object_features(path, *, rooms: int, seed: int = 0, points: int = 80_000,
+                          workers: int = 1, progress: bool = False) -> dict:
     """Write (or complete) ``path`` (``features.npz``) from ``rooms`` synthetic rooms of
-    seeds ``seed .. seed + rooms - 1``; returns its arrays. Resumable: the rooms already in
-    the file are kept (the file is rewritten atomically every 20 rooms)."""
-    from jaxmotion.scene.rooms import room_to_scene, sample_room
-
+    seeds ``seed .. seed + rooms - 1`` on ``workers`` processes (the same file with any
+    number); returns its arrays. Resumable: the rooms already in the file are kept (the file
+    is rewritten atomically every 20 rooms)."""
     path = Path(path)
     settings = {"version": FEATURES_VERSION, "seed": seed, "points": points}
     data = {"features": [], "labels": [], "room": []}
@@ -113,11 +112,15 @@ def build_object_features(path, *, rooms: int, seed: int = 0, points: int = 150_
                 room=np.asarray(data["room"], np.int64), categories=np.array(CATEGORIES),
                 settings=np.array(json.dumps(settings)))
 
-    for r in range(start, rooms):
-        rng = np.random.default_rng([seed, r])
-        room = sample_room(seed + r)
-        scene = degrade(room_to_scene(room, points, rng), rng)
-        feats, labels, _ = room_objects(scene, seed=r)
+    import concurrent.futures as cf
+    import multiprocessing as mp
+
+    todo = list(range(start, rooms))
+    pool = (cf.ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"))
+            if workers > 1 and len(todo) > 1 else None)
+    results = (pool.map(_one_room, [(seed, r, points) for r in todo]) if pool is not None
+               else map(_one_room, [(seed, r, points) for r in todo]))
+    for r, (feats, labels) in zip(todo, results):
         data["features"].extend(feats)
         data["labels"].extend(CATEGORIES.index(c) for c in labels)
         data["room"].extend([r] * len(labels))
@@ -126,10 +129,25 @@ def build_object_features(path, *, rooms: int, seed: int = 0, points: int = 150_
             if progress:
                 print(f"  object features: {r + 1}/{rooms} rooms, {len(data['labels'])} objects",
                       flush=True)
+    if pool is not None:
+        pool.shutdown()
     if start >= rooms and not path.is_file():
         save()
     with np.load(path, allow_pickle=False) as z:
-        return {k: z[k] for k in ("features", "labels", "room", "categories")}
+        keep = z["room"] < rooms  # a file built for more rooms serves fewer
+        return {**{k: z[k][keep] for k in ("features", "labels", "room")},
+                "categories": z["categories"]}
+
+
+def _one_room(args) -> tuple[np.ndarray, list[str]]:
+    """Features and true categories of room ``r`` (the unit of work of the workers)."""
+    from jaxmotion.scene.rooms import room_to_scene, sample_room
+
+    seed, r, points = args
+    rng = np.random.default_rng([seed, r])
+    scene = degrade(room_to_scene(sample_room(seed + r), points, rng), rng)
+    feats, labels, _ = room_objects(scene, seed=r)
+    return feats, labels
 
 
 def _num_features() -> int:

@@ -211,11 +211,16 @@ def scene_heat(res, xyz: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------- region
 
 
-def summary(res) -> str:
+def summary(res, notes=(), warnings=()) -> str:
     """A JSON line describing a result (for the command line): with what was understood from
     the text (``action``, ``action_from``, ``target``, ``notes``, ``warnings``;
-    :meth:`jaxmotion.grounding.report.Understanding.as_json`) when the result has it."""
+    :meth:`jaxmotion.grounding.report.Understanding.as_json`) when the result has it, and
+    the ``notes`` and ``warnings`` given (what preparing the room did, every warning the
+    command printed), each said once."""
     understood = res.understanding.as_json() if res.understanding is not None else {}
+    for key, more in (("notes", notes), ("warnings", warnings)):
+        said = list(understood.get(key, []))
+        understood[key] = said + [str(m) for m in more if str(m) not in said]
     return json.dumps({"text": res.text, "samples": res.num_samples, "frames": int(res.mask.sum()),
                        **understood, "pipeline": res.pipeline, "target_id": res.target_id,
                        "grounding": res.grounding,

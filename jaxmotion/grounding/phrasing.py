@@ -24,7 +24,7 @@ from jaxmotion.grounding import lexicon as lx
 from jaxmotion.grounding.words import MAX_WORDS, canonical_category, indexes, lemma, spans, tokenize
 from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
-__all__ = ["ACTION_OBJECT_CLASSES", "MAX_WORDS", "Reading", "action_classes",
+__all__ = ["ACTION_OBJECT_CLASSES", "MAX_WORDS", "Reading", "action_classes", "takes",
            "canonical_category", "preferred_seats", "read_phrasing", "tokenize"]
 
 _PRIORITY = {"stand_up": 3, "lie": 2, "sit": 1, "walk": 0}
@@ -46,12 +46,22 @@ def action_classes(action: str | None) -> tuple[str, ...] | None:
     return ACTION_OBJECT_CLASSES.get(action) if action else None
 
 
-def preferred_seats(action: str | None, objects) -> list:
-    """Of ``objects`` (object-table rows) that ``action`` can take, the ones a plain
-    "sit" / "stand up" means: the seats that are not beds, when there are any (a bed takes
-    a sit, but a room's chairs and sofas come first); for other actions all that take it."""
+def takes(action: str | None, obj: dict) -> bool:
+    """Whether ``action`` can take the object-table row ``obj``: any object for a walk; for
+    sit, stand up and lie an object of a class that takes it, or one whose surface affords
+    it (``affords``, found by segmentation: an unnamed seat or bed)."""
     classes = action_classes(action)
-    fits = [o for o in objects if classes is None or canonical_category(o["category"]) in classes]
+    verb = "sit" if action == "stand_up" else action
+    return (classes is None or canonical_category(obj["category"]) in classes
+            or verb in obj.get("affords", ()))
+
+
+def preferred_seats(action: str | None, objects) -> list:
+    """Of ``objects`` (object-table rows) that ``action`` can take (:func:`takes`), the ones a
+    plain "sit" / "stand up" means: the seats that are not beds, when there are any (a bed
+    takes a sit, but a room's chairs and sofas come first); for other actions all that take
+    it."""
+    fits = [o for o in objects if takes(action, o)]
     if action in ("sit", "stand_up"):
         beds = [o for o in fits if canonical_category(o["category"]) == "bed"]
         if len(beds) < len(fits):

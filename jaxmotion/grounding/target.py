@@ -259,7 +259,7 @@ def ground_candidates(room, text, grounding: str = "auto") -> Candidates:
         classes = action_classes(action)
         if classes is None:
             return Candidates([], "", tuple(notes), tuple(warns))
-        found = [o for c in classes for o in by_class.get(c, ())]
+        found = _takers(action, classes, by_class, objects)
         how = "action"
         if not found:
             return Candidates([], "", tuple(notes), tuple(warns), error=(
@@ -276,7 +276,8 @@ def ground_candidates(room, text, grounding: str = "auto") -> Candidates:
     classes = action_classes(action)
     if classes is not None and found and not r.seat_at:
         odd = sorted({o["category"] for o in found
-                      if canonical_category(o["category"]) not in classes})
+                      if canonical_category(o["category"]) not in classes
+                      and action not in o.get("affords", ())})
         if odd:
             warns.append(f"jaxmotion's models {_VERB[action]} {_plural(action)}; "
                          f"{' and '.join(odd)} is not one: the motion is for it as asked, "
@@ -304,6 +305,15 @@ def _by_meaning(ins, phrase, by_class, notes):
     return guess, "similarity"
 
 
+def _takers(action, classes, by_class, objects) -> list[dict]:
+    """The objects ``action`` (sit, stand up, lie) takes: those of its classes, else those
+    whose surface affords it (``affords``: an unnamed seat or bed found by segmentation,
+    :mod:`jaxmotion.scene.segment`)."""
+    found = [o for c in classes for o in by_class.get(c, ())]
+    verb = "sit" if action == "stand_up" else action
+    return found or [o for o in objects if verb in o.get("affords", ())]
+
+
 def _instead(target, action, r, by_class, warns, objects):
     """Objects to use when the room has none of the named class: a related class, else
     (sitting, lying, getting up) the objects the action takes."""
@@ -315,7 +325,7 @@ def _instead(target, action, r, by_class, warns, objects):
             return list(by_class[c]), "related"
     classes = action_classes(action)
     if classes is not None and not r.seat_at:
-        found = [o for c in classes for o in by_class.get(c, ())]
+        found = _takers(action, classes, by_class, objects)
         if found:
             warns.append(f"there is no {target} in this room (its objects: "
                          f"{_classes(objects)}); {_VERB[action]} one of its "

@@ -181,7 +181,7 @@ def control_generation(scene, text: str, trajectory, opts, progress: bool = Fals
 
     t0 = time.perf_counter()
     text = check_text(text)
-    room = load_scene_arg(scene, opts.num_points)
+    room = load_scene_arg(scene, opts.num_points, up=opts.up, unit=opts.unit)
     if isinstance(trajectory, (str, bytes)) or hasattr(trajectory, "__fspath__"):
         trajectory = load_path(trajectory)
     story = follow(room, trajectory, text, seed=opts.seed, files=opts.object_checkpoints,
@@ -232,7 +232,7 @@ def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=N
     if opts.object_id is not None:
         raise GenerateError("the text tells several steps, each naming its own object: leave "
                             "out --object (object_id), or name the objects in the text by id")
-    room = load_scene_arg(scene, opts.num_points)
+    room = load_scene_arg(scene, opts.num_points, up=opts.up, unit=opts.unit)
     steps, notes, warns = plan_from_text(room, text,
                                          enable_compilation_cache() / "text-embeddings")
     if progress:

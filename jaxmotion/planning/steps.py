@@ -21,6 +21,8 @@ A text with one action is not a story: ``generate`` makes it one clip, as before
 
 from __future__ import annotations
 
+import functools
+
 from jaxmotion.errors import GenerateError
 
 __all__ = ["is_story", "plan_from_text", "split_steps"]
@@ -94,10 +96,10 @@ def plan_from_text(scene, text, similarity=None):
     from jaxmotion.grounding import ground_candidates, object_table, read_instruction
     from jaxmotion.grounding.phrasing import (
         action_classes,
-        canonical_category,
         preferred_seats,
         tokenize,
     )
+    from jaxmotion.grounding.phrasing import takes as action_takes
     from jaxmotion.scene.graph import SceneGraph
 
     objects = list(object_table(scene))
@@ -115,7 +117,7 @@ def plan_from_text(scene, text, similarity=None):
         ins = read_instruction(clause, similarity)
         words = set(tokenize(clause))
         classes = action_classes(action)
-        takes = (lambda o, c=classes: c is None or canonical_category(o["category"]) in c)
+        takes = functools.partial(action_takes, action)
         found = None
         if ins.reading.target is None and not ins.named_ids and prev is not None and (
                 words & set(_BACK) or not ins.reading.generic):

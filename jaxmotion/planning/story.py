@@ -95,6 +95,7 @@ def read_plan(plan, scene) -> tuple[Step, ...]:
     naming the bad step and the fix. A step after a sit or lie that is not the stand-up from
     it gets that stand-up inserted before it (the returned steps include it)."""
     from jaxmotion.grounding.objects import object_table
+    from jaxmotion.grounding.phrasing import takes
 
     if isinstance(plan, (str, Path)):
         try:
@@ -126,7 +127,7 @@ def read_plan(plan, scene) -> tuple[Step, ...]:
             valid = ", ".join(f"{k} ({o['category']})" for k, o in sorted(objects.items()))
             raise GenerateError(f"step {i}: the scene has no object {oid}; its objects: {valid}")
         cat = objects[oid]["category"]
-        if step.action in _TAKES and cat not in _TAKES[step.action]:
+        if step.action in _TAKES and not takes(step.action, objects[oid]):
             raise GenerateError(f"step {i}: cannot {step.action.replace('_', ' ')} "
                                 f"{'on' if step.action != 'stand_up' else 'from'} a {cat} "
                                 f"(object {oid}); that takes {', '.join(_TAKES[step.action])}")
@@ -507,7 +508,7 @@ def story_generation(scene, plan, opts, progress: bool = False, text: str | None
     t0 = time.perf_counter()
     from jaxmotion.export.folder import check_outputs
 
-    room = load_scene_arg(scene, opts.num_points)
+    room = load_scene_arg(scene, opts.num_points, up=opts.up, unit=opts.unit)
     steps = read_plan(plan, room)
     check_outputs(room, [s.object for s in steps], video=None)  # as saving will, before sampling
     story = tell(room, steps, seed=opts.seed, files=opts.object_checkpoints, steps=opts.steps,

@@ -43,20 +43,26 @@ def build_demo_scene(num_points: int = DEMO_POINTS):
     return dataclasses.replace(scene, name="demo")
 
 
-def load_scene_arg(scene, num_points: int | None = None):
+def load_scene_arg(scene, num_points: int | None = None, *, up: str = "auto",
+                   unit: str = "auto"):
     """``"demo"`` (:func:`demo_scene`), a path (any file :func:`jaxmotion.scene.load_scene`
-    reads) or a :class:`~jaxmotion.scene.Scene` as a scene; :class:`GenerateError` when the
-    file cannot be read."""
-    from jaxmotion.scene import Scene, SceneError, load_scene
+    reads) or a :class:`~jaxmotion.scene.Scene`, made ready by
+    :func:`jaxmotion.scene.prepare.prepare_room` (levelled; objects found when it has no
+    labels). What was done is said as :class:`~jaxmotion.errors.SceneNote` warnings;
+    :class:`GenerateError` when the file cannot be read."""
+    import warnings
 
-    if isinstance(scene, Scene):
-        return scene
-    if isinstance(scene, str) and scene == "demo":
-        return demo_scene()
+    from jaxmotion.errors import SceneNote
+    from jaxmotion.scene import SceneError
+    from jaxmotion.scene.prepare import prepare_room
+
     try:
-        return load_scene(scene, num_points=num_points)
+        room = prepare_room(scene, num_points=num_points, up=up, unit=unit)
     except SceneError as e:
         raise GenerateError(str(e)) from e
+    for note in room.notes:
+        warnings.warn(SceneNote(note), stacklevel=2)
+    return room.scene
 
 
 # --------------------------------------------------------------------------- result

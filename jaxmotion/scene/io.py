@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # imported on use: ~0.2 s that loading a .npz scene does not 
     import trimesh
 
 __all__ = ["DEFAULT_MESH_POINTS", "NPZ_KEYS", "SUPPORTED_EXTENSIONS", "Y_UP_TO_Z_UP", "Scene",
-           "SceneError", "load_scene", "load_scene_and_notes", "save_scene",
+           "SceneError", "load_scene", "load_scene_and_notes", "save_scene", "save_scene_ply",
            "scene_to_trimesh_points"]
 
 SUPPORTED_EXTENSIONS = (".ply", ".obj", ".glb", ".gltf", ".off", ".stl", ".npz")
@@ -311,6 +311,36 @@ def save_scene(scene: Scene, path) -> Path:
         np.savez(f, xyz=scene.xyz, rgb=scene.rgb, normal=scene.normal,
                  semantic=scene.semantic, instance=scene.instance,
                  objects=np.array(objects), name=np.array(scene.name))
+    return path
+
+
+def save_scene_ply(scene: Scene, path) -> Path:
+    """Write ``scene`` as a binary PLY point cloud atomically: ``x y z`` and ``nx ny nz``
+    float, ``red green blue`` uchar, ``label`` ushort (the semantic id; 0 = unknown, as
+    ScanNet's unannotated) and ``instance`` int (−1 = none), which :func:`load_scene` (and
+    ScanNet-style tools) read back; the object table is derived again from the labels on
+    loading (categories from the ids; confidences and surfaces live in the ``.npz``)."""
+    path = Path(path)
+    if path.suffix.lower() != ".ply":
+        raise SceneError(f"{path}: save_scene_ply writes .ply files; give a path ending in .ply")
+    if not path.parent.is_dir():
+        raise SceneError(f"{path}: folder {path.parent} does not exist; create it first")
+    fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("nx", "<f4"), ("ny", "<f4"),
+              ("nz", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1"), ("label", "<u2"),
+              ("instance", "<i4")]
+    v = np.empty(scene.num_points, np.dtype(fields))
+    for i, c in enumerate("xyz"):
+        v[c], v["n" + c] = scene.xyz[:, i], scene.normal[:, i]
+    for i, c in enumerate(("red", "green", "blue")):
+        v[c] = np.round(scene.rgb[:, i] * 255)
+    v["label"] = np.clip(scene.semantic, 0, 65535)
+    v["instance"] = scene.instance
+    kinds = {"<f4": "float", "u1": "uchar", "<u2": "ushort", "<i4": "int"}
+    header = "".join(["ply\nformat binary_little_endian 1.0\n",
+                      f"element vertex {len(v)}\n",
+                      *(f"property {kinds[t]} {n}\n" for n, t in fields), "end_header\n"])
+    with atomic_open(path, "wb") as f:
+        f.write(header.encode() + v.tobytes())
     return path
 
 

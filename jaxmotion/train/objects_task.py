@@ -31,7 +31,7 @@ class ObjectsTask:
             Path(cfg.workdir).mkdir(parents=True, exist_ok=True)
             d = build_object_features(Path(cfg.workdir) / "features.npz", rooms=cfg.rooms,
                                       seed=cfg.room_seed, points=cfg.room_points,
-                                      progress=cfg.progress)
+                                      workers=cfg.loader_workers or 1, progress=cfg.progress)
             val = d["room"] >= cfg.rooms - cfg.val_rooms
             self._arrays = {"train": (d["features"][~val], d["labels"][~val]),
                             "val": (d["features"][val], d["labels"][val]),

@@ -68,15 +68,16 @@ def _unlabelled_group(sem: np.ndarray) -> bool:
 def vertex_data(geom) -> dict:
     """Per-vertex Scene arrays of one mesh / point cloud (grey, zero normals, -1 if unknown):
     PLY ``label`` -> semantic (0, NYU40's "unannotated", -> -1), ``instance`` / ``objectId``
-    / ``instance_id`` -> instance (0 -> -1 when its points are mostly unannotated or
-    structure: the "none" of files that count objects from 1)."""
+    / ``instance_id`` -> instance (0 -> -1 when the file has no negative id and its points
+    are mostly unannotated or structure: the "none" of files that count objects from 1)."""
     n = len(geom.vertices)
     rgb = _vertex_colors(geom, n)
     labels = [_ply_vertex_property(geom, p, n) for p in (SEMANTIC_PROPERTIES, INSTANCE_PROPERTIES)]
     sem, ins = (np.full(n, -1, np.int64) if v is None else v.astype(np.int64) for v in labels)
     if labels[0] is not None:
         sem[sem == 0] = -1  # NYU40 / ScanNet label 0: unannotated
-    if labels[1] is not None and (zero := ins == 0).any() and _unlabelled_group(sem[zero]):
+    if labels[1] is not None and (zero := ins == 0).any() and not (ins < 0).any() \
+            and _unlabelled_group(sem[zero]):
         ins[zero] = -1  # instance 0 as "none" (ScanNet exports count objects from 1)
     normal = [_ply_vertex_property(geom, (c,), n) for c in ("nx", "ny", "nz")]
     normal = np.zeros((n, 3)) if any(c is None for c in normal) else np.stack(normal, 1)

@@ -178,8 +178,8 @@ def find_instances(xyz: np.ndarray, structure: Structure, split: bool = True) ->
     """``[N]`` instance ids of a levelled room (−1: none): :func:`find_components` of the
     points that are not structure, each split where objects touch (:func:`split_touching`,
     unless ``split`` is False), then the wall points an object stands against given back
-    to it (within 4 cm of its points and inside its box grown by 4 cm: the back of a cabinet
-    or a bookshelf, which lies in the wall's plane)."""
+    to it (inside its box grown by 4 cm and within 15 cm of its points: the back of a cabinet or a
+    bookshelf, which lies in the wall's plane)."""
     from scipy.spatial import cKDTree
 
     xyz = np.asarray(xyz, np.float64)
@@ -201,7 +201,7 @@ def find_instances(xyz: np.ndarray, structure: Structure, split: bool = True) ->
     mine = np.flatnonzero(instance >= 0)
     if not len(wall) or not len(mine):
         return instance
-    d, j = cKDTree(xyz[mine]).query(xyz[wall], distance_upper_bound=0.04)
+    d, j = cKDTree(xyz[mine]).query(xyz[wall], distance_upper_bound=0.15)
     near = np.isfinite(d)
     cand, owner = wall[near], instance[mine[j[near]]]
     count = int(instance.max()) + 1

@@ -1,0 +1,176 @@
+"""Object discovery in rooms without labels (jaxmotion.scene.segment, scene.prepare)."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from jaxmotion.scene import segment as seg
+
+
+def _box(lo, hi, n, rng, top_only=False):
+    """Points on the surface of the box [lo, hi] (its top alone with ``top_only``)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    pts = rng.uniform(lo, hi, (n, 3))
+    if top_only:
+        pts[:, 2] = hi[2]
+        return pts
+    face = rng.integers(0, 6, n)
+    axis, side = face // 2, face % 2
+    pts[np.arange(n), axis] = np.where(side, hi[axis], lo[axis])
+    return pts
+
+
+def test_components_match_a_brute_force_flood_fill():
+    from scipy.ndimage import label
+
+    rng = np.random.default_rng(0)
+    xyz = rng.uniform(0, 1.5, (3000, 3))
+    mask = rng.random(3000) < 0.8
+    got = seg.find_components(xyz, mask, voxel=0.1, min_points=1)
+    cells = np.floor(xyz / 0.1).astype(int)
+    grid = np.zeros(cells.max(0) + 1, bool)
+    grid[tuple(cells[mask].T)] = True
+    want, _ = label(grid, structure=np.ones((3, 3, 3)))
+    want = want[tuple(cells.T)]
+    assert (got[~mask] == -1).all()
+    # the same partition of the masked points (ids may differ)
+    pairs = set(zip(got[mask].tolist(), want[mask].tolist()))
+    assert len(pairs) == len(set(got[mask].tolist())) == len(set(want[mask].tolist()))
+
+
+def test_touching_objects_are_split_and_one_object_is_not():
+    rng = np.random.default_rng(1)
+    table = _box([0, 0, 0], [1.0, 0.8, 0.75], 3000, rng)
+    seat = _box([1.0, 0.2, 0], [1.45, 0.6, 0.45], 1200, rng)  # a stool against the table
+    part = seg.split_touching(np.concatenate([table, seat]))
+    major = lambda p: np.bincount(p).argmax()  # noqa: E731
+    assert major(part[:3000]) != major(part[3000:])
+    # the top-view cells of a shared face go to one side: the rest follows its object
+    assert np.mean(part[:3000] == major(part[:3000])) > 0.99
+    assert np.mean(part[3000:] == major(part[3000:])) > 0.7
+    back = _box([1.4, 0.2, 0.45], [1.45, 0.6, 0.95], 500, rng)  # a chair: seat + backrest
+    chair = np.concatenate([seat, back])
+    assert len(set(seg.split_touching(chair).tolist())) == 1
+
+
+def test_support_surfaces_find_seats_and_beds():
+    rng = np.random.default_rng(2)
+    up = lambda p: np.broadcast_to([0.0, 0.0, 1.0], p.shape).copy()  # noqa: E731
+    seat = _box([0, 0, 0.45], [0.45, 0.45, 0.45], 400, rng, top_only=True)
+    got = seg.support_surfaces(seat, up(seat))
+    assert got["affords"] == ["sit"] and abs(got["surface_height"] - 0.45) <= 0.02
+    bed = _box([0, 0, 0.5], [2.0, 1.4, 0.5], 2000, rng, top_only=True)
+    assert seg.support_surfaces(bed, up(bed))["affords"] == ["sit", "lie"]
+    table = _box([0, 0, 0.75], [1.0, 1.0, 0.75], 800, rng, top_only=True)
+    assert seg.support_surfaces(table, up(table)) == {}
+
+
+@pytest.fixture(scope="module")
+def unlabelled():
+    """Rooms of an unseen seed with their labels kept aside."""
+    from jaxmotion.scene.rooms import room_to_scene, sample_room
+
+    out = []
+    for seed in (9002, 9011):
+        s = room_to_scene(sample_room(seed), 40_000, np.random.default_rng(seed))
+        out.append((s, dataclasses.replace(s, normal=None, semantic=None, instance=None,
+                                           objects=())))
+    return out
+
+
+def _hits(truth, found):
+    """(furniture matched at IoU >= 0.5, furniture) of a room and its segmentation."""
+    from jaxmotion.scene.furniture import SMALL_OBJECTS, WALL_MOUNTED
+
+    hits = total = 0
+    for o in truth.objects:
+        if o["category"] in WALL_MOUNTED + SMALL_OBJECTS:
+            continue
+        g = truth.instance == o["id"]
+        best = max([(g & (found.instance == c)).sum() / (g | (found.instance == c)).sum()
+                    for c in np.unique(found.instance[g]) if c >= 0] or [0.0])
+        hits, total = hits + (best >= 0.5), total + 1
+    return hits, total
+
+
+def _recall(truth, found):
+    hits, total = _hits(truth, found)
+    return hits / total
+
+
+def test_an_unlabelled_room_gets_floor_walls_and_its_furniture(unlabelled):
+    matched = []
+    for truth, bare in unlabelled:
+        found, notes = seg.segment_scene(bare)
+        assert found.objects and "objects found" in notes[0]
+        floor = truth.semantic == 2
+        assert np.mean(found.semantic[floor] == seg.FLOOR) > 0.95
+        wall = (truth.semantic == 1) & (truth.instance < 0)
+        assert np.mean(found.semantic[wall] == seg.WALL) > 0.8
+        matched.append(_hits(truth, found))
+        for o in found.objects:
+            assert o["source"] == "segment" and 0.0 <= o["confidence"] <= 1.0
+            assert (found.instance == o["id"]).sum() == o["points"]
+        again, _ = seg.segment_scene(bare)  # deterministic
+        np.testing.assert_array_equal(again.instance, found.instance)
+    hits, total = np.sum(matched, axis=0)
+    assert hits / total >= 0.7, matched  # benchmarks/segment.py measures it on many rooms
+
+
+def test_classes_without_instances_are_split_into_objects():
+    from jaxmotion.scene.demo import demo_scene
+    from jaxmotion.scene.prepare import instances_from_classes
+
+    demo = demo_scene()
+    classes_only = dataclasses.replace(demo, instance=None, objects=())
+    out = instances_from_classes(classes_only)
+    assert out.objects
+    assert _recall(demo, out) >= 0.85
+    chairs = [o for o in out.objects if o["category"] == "chair"]
+    assert len(chairs) == 1  # the demo's one chair, not a cluster of chairs
+
+
+def test_prepare_caches_the_labelled_room(tmp_path, monkeypatch, unlabelled):
+    from jaxmotion.scene.io import save_scene_ply
+    from jaxmotion.scene.prepare import prepare_room
+
+    monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "cache"))
+    _, bare = unlabelled[0]
+    path = save_scene_ply(bare, tmp_path / "room.ply")
+    first = prepare_room(path)
+    assert first.labels == "segment" and not first.cached and first.scene.objects
+    second = prepare_room(path)
+    assert second.cached and second.notes == first.notes
+    np.testing.assert_array_equal(second.scene.instance, first.scene.instance)
+    assert second.scene.objects == first.scene.objects
+    calls = []
+    monkeypatch.setattr(seg, "segment_scene", lambda *a, **k: calls.append(1))
+    prepare_room(path)
+    assert not calls  # not segmented again
+
+
+def test_scene_segment_command_writes_a_room_generate_reads(tmp_path, monkeypatch, capsys,
+                                                            unlabelled):
+    from jaxmotion.cli import main
+    from jaxmotion.scene import load_scene
+    from jaxmotion.scene.io import save_scene_ply
+
+    monkeypatch.setenv("JAXMOTION_CACHE", "off")
+    _, bare = unlabelled[1]
+    mm = dataclasses.replace(bare, xyz=bare.xyz * 1000.0)  # a room in millimetres
+    src = save_scene_ply(mm, tmp_path / "scan_mm.ply")
+    for out in ("room.npz", "room.ply"):
+        assert main(["scene", "segment", str(src), "--out", str(tmp_path / out)]) == 0
+        printed = json.loads(capsys.readouterr().out)
+        assert printed["labels"] == "segment" and printed["objects"]
+        assert any("read as mm" in n for n in printed["notes"])
+        room = load_scene(tmp_path / out)
+        assert len(room.objects) == len(printed["objects"])
+        assert room.xyz.max() < 20.0  # metres now
+    assert main(["scene", "info", str(tmp_path / "room.npz")]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["labels"] == "file" and info["objects"] == len(printed["objects"])
+    assert {"id", "category", "centre", "size", "confidence"} <= set(info["object_table"][0])
+    assert main(["scene", "segment", str(src), "--out", str(tmp_path / "room.txt")]) == 2

@@ -46,10 +46,11 @@ def _object_row(o: dict) -> dict:
 def _prepared(args: argparse.Namespace):
     """The room of ``scene info`` / ``scene segment``: levelled and labelled as ``generate``
     makes it (:func:`jaxmotion.scene.prepare.prepare_room`)."""
+    from jaxmotion.scene.demo import demo_scene
     from jaxmotion.scene.prepare import prepare_room
 
-    return prepare_room(args.path, num_points=args.points, seed=args.seed, up=args.up,
-                        unit=args.unit)
+    return prepare_room(demo_scene() if args.path == "demo" else args.path,
+                        num_points=args.points, seed=args.seed, up=args.up, unit=args.unit)
 
 
 def _cmd_scene_info(args: argparse.Namespace) -> int:

@@ -12,8 +12,9 @@ This module only orchestrates; each stage lives in its own module:
 
 1. **validate** the options (:class:`jaxmotion.options.GenerateOptions`), the text and the
    checkpoints (:mod:`jaxmotion.pipelines.checkpoints`) before anything heavy is loaded;
-2. **load** the scene (:func:`jaxmotion.scene.demo.load_scene_arg`: ``"demo"``, a path or a
-   :class:`~jaxmotion.scene.Scene`) and warn when it does not look z-up with its floor at 0;
+2. **load** the scene (:func:`jaxmotion.scene.demo.room_for`: ``"demo"``, a path or a
+   :class:`~jaxmotion.scene.Scene`), levelled, its objects found when it has no labels
+   (:mod:`jaxmotion.scene.prepare`); an empty room or one without objects is refused;
 3. **ground** (:mod:`jaxmotion.grounding`): the target object from ``object_id``, the scene
    graph, the only object of the named class, or, among several or none named, the room's
    free floor (:mod:`jaxmotion.grounding.reach`) or the ADM's map (``grounding="adm"``, a
@@ -137,8 +138,8 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     from jaxmotion.grounding.region import centre_on_object
     from jaxmotion.pipelines.checkpoints import adm_text_tokens, pick_pipeline
     from jaxmotion.pipelines.object_centric import prefetch_sampler
-    from jaxmotion.scene.checks import scene_warnings
-    from jaxmotion.scene.demo import load_scene_arg
+    from jaxmotion.scene.checks import check_room, scene_warnings
+    from jaxmotion.scene.demo import room_for
     from jaxmotion.text.condition import blank_condition, embed_one
 
     times: dict[str, float] = {}
@@ -156,9 +157,8 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     if models.files and opts.pipeline in ("auto", "object-centric"):  # loads while grounding
         prefetch_sampler(opts, models.files, root, aot_dir, versions)
     texts = xla_cache / "text-embeddings"
-    room = load_scene_arg(scene, opts.num_points, up=opts.up, unit=opts.unit)
-    if room.num_points == 0:
-        raise GenerateError("the scene has no points")
+    room = room_for(scene, opts)
+    check_room(room, opts.pipeline)  # empty, or no object found: refused with the fix
     for message in scene_warnings(room):
         warnings.warn(message, UserWarning, stacklevel=3)
     target_obj = None if opts.object_id is None else find_object(room, opts.object_id)

@@ -63,7 +63,9 @@ def test_scene_info_and_convert(tmp_path, capsys):
     assert main(["scene", "info", str(path), "--points", "500"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["points"] == 500
-    np.testing.assert_allclose(info["bounds_max"], [1.0, 1.5, 0.5], atol=1e-3)
+    # scene info shows the room as generate sees it: its floor (the box's bottom) at z = 0
+    np.testing.assert_allclose(info["bounds_max"], [1.0, 1.5, 1.0], atol=1e-3)
+    assert any("moved to z = 0" in n for n in info["notes"])
     out = tmp_path / "room.npz"
     assert main(["scene", "convert", str(path), str(out), "--points", "300"]) == 0
     assert "300 points" in capsys.readouterr().out

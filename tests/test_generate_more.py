@@ -4,6 +4,7 @@
 Split from ``test_generate.py`` so that the two run in parallel test workers; uses the same tiny
 trained runs (conftest ``tiny_runs``)."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -92,7 +93,8 @@ def test_shipped_default():
 
 
 def _bare_demo():
-    """The demo room without its labels: no object table, so no target can be known."""
+    """The demo room without its labels: its objects are found by segmentation (none are
+    known with ``pipeline="affordance"``, whose model then chooses the place)."""
     import dataclasses
 
     from jaxmotion.scene.demo import load_scene_arg
@@ -114,7 +116,7 @@ def test_text_naming_no_object_tiles_the_room(ckpt):
                            grounding="adm", **FAST)
     assert r.grounding == "adm peak" and r.target_id in {int(o["id"]) for o in r.scene.objects}
     r = jaxmotion.generate(_bare_demo(), "dance around for a while", checkpoints=ckpt,
-                           fit=False, **FAST)
+                           fit=False, pipeline="affordance", **FAST)
     assert r.target_id is None and r.joints.shape == (1, 120, 22, 3)
 
 
@@ -338,7 +340,7 @@ def test_text_only_adm_when_no_target_is_known(ckpt, tmp_path, monkeypatch):
 
     monkeypatch.setattr(G, "load_pipeline", spy)
     r = jaxmotion.generate(_bare_demo(), "dance around for a while", checkpoints=folder,
-                           fit=False, aot=False, **FAST)
+                           fit=False, aot=False, pipeline="affordance", **FAST)
     assert r.target_id is None and used and set(used) == {G.TEXT_ADM}
     used.clear()
     r = jaxmotion.generate("demo", "sit on the chair next to the table", checkpoints=folder,
@@ -362,8 +364,12 @@ def test_the_default_pipeline_is_object_centric_when_the_target_is_known(ckpt, t
     assert r.pipeline == "object-centric" and r.grounding == "wander"
     assert r.target_id in {int(o["id"]) for o in r.scene.objects}
     assert any("a walk to" in n for n in r.understanding.notes)
-    bare = _bare_demo()
+    bare = _bare_demo()  # no labels: its objects are found, and the same pipeline runs
     r = jaxmotion.generate(bare, "dance around for a while", **kw)
-    assert r.pipeline == "affordance" and r.target_id is None
-    with pytest.raises(GenerateError, match="needs a target object"):
-        jaxmotion.generate(bare, "dance around for a while", pipeline="object-centric", **kw)
+    assert r.pipeline == "object-centric" and r.target_id in {o["id"] for o in r.scene.objects}
+    assert all(o["source"] == "segment" for o in r.scene.objects)
+    r = jaxmotion.generate(bare, "dance around for a while", pipeline="affordance", **kw)
+    assert r.pipeline == "affordance" and r.target_id is None  # the ADM chooses the place
+    floor_only = dataclasses.replace(bare, xyz=bare.xyz * [1.0, 1.0, 0.0])
+    with pytest.raises(GenerateError, match="no object was found"):
+        jaxmotion.generate(floor_only, "dance around for a while", **kw)

@@ -7,7 +7,7 @@ import pytest
 
 from jaxmotion.errors import SceneError
 from jaxmotion.scene.level import (
-    _AXIS_TO_Z,
+    AXIS_TO_Z,
     detect_unit,
     estimate_normals,
     level_scene,
@@ -41,7 +41,7 @@ def test_rotation_between_takes_a_to_b():
         assert np.linalg.det(r) == pytest.approx(1.0)
     np.testing.assert_allclose(rotation_between([0, 0, 1], [0, 0, -1]) @ [0, 0, 1], [0, 0, -1],
                                atol=1e-12)
-    for (axis, sign), r in _AXIS_TO_Z.items():
+    for (axis, sign), r in AXIS_TO_Z.items():
         np.testing.assert_allclose(r @ (np.eye(3)[axis] * sign), [0, 0, 1])
         assert np.linalg.det(r) == pytest.approx(1.0)
 
@@ -84,9 +84,9 @@ def test_frames_and_units_are_found(rooms, case):
     note saying what was done."""
     for room in rooms:
         moved = {
-            "y-up": lambda s: s.transformed(_AXIS_TO_Z[1, 1].T),
-            "x-down": lambda s: s.transformed(_AXIS_TO_Z[0, -1].T),
-            "z-down": lambda s: s.transformed(_AXIS_TO_Z[2, -1].T),
+            "y-up": lambda s: s.transformed(AXIS_TO_Z[1, 1].T),
+            "x-down": lambda s: s.transformed(AXIS_TO_Z[0, -1].T),
+            "z-down": lambda s: s.transformed(AXIS_TO_Z[2, -1].T),
             "tilted": lambda s: s.transformed(_turn(np.array([0.6, 0.8, 0.0]), np.deg2rad(5))),
             "floor at 1.5": lambda s: s.translated([0, 0, 1.5]),
             "floor at -0.65": lambda s: s.translated([0, 0, -0.65]),

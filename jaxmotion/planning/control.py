@@ -176,12 +176,12 @@ def control_generation(scene, text: str, trajectory, opts, progress: bool = Fals
     ``trajectory`` is ``[T, 2]`` or a file :func:`load_path` reads. ``opts`` gives ``seed``,
     ``steps``, the motion stage's ``guidance``, ``object_id`` and ``object_checkpoints``."""
     from jaxmotion.planning.story import story_result
-    from jaxmotion.scene.demo import load_scene_arg
+    from jaxmotion.scene.demo import room_for
     from jaxmotion.text.condition import check_text
 
     t0 = time.perf_counter()
     text = check_text(text)
-    room = load_scene_arg(scene, opts.num_points, up=opts.up, unit=opts.unit)
+    room = room_for(scene, opts)
     if isinstance(trajectory, (str, bytes)) or hasattr(trajectory, "__fspath__"):
         trajectory = load_path(trajectory)
     story = follow(room, trajectory, text, seed=opts.seed, files=opts.object_checkpoints,
@@ -225,14 +225,14 @@ def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=N
         return story_generation(scene, plan, opts, progress)
     from jaxmotion._jax_setup import enable_compilation_cache
     from jaxmotion.planning.steps import plan_from_text
-    from jaxmotion.scene.demo import load_scene_arg
+    from jaxmotion.scene.demo import room_for
     from jaxmotion.text.condition import check_text
 
     text = check_text(text)
     if opts.object_id is not None:
         raise GenerateError("the text tells several steps, each naming its own object: leave "
                             "out --object (object_id), or name the objects in the text by id")
-    room = load_scene_arg(scene, opts.num_points, up=opts.up, unit=opts.unit)
+    room = room_for(scene, opts)
     steps, notes, warns = plan_from_text(room, text,
                                          enable_compilation_cache() / "text-embeddings")
     if progress:

@@ -503,12 +503,12 @@ def story_generation(scene, plan, opts, progress: bool = False, text: str | None
     and ``object_checkpoints``."""
     import time
 
-    from jaxmotion.scene.demo import load_scene_arg
+    from jaxmotion.scene.demo import room_for
 
     t0 = time.perf_counter()
     from jaxmotion.export.folder import check_outputs
 
-    room = load_scene_arg(scene, opts.num_points, up=opts.up, unit=opts.unit)
+    room = room_for(scene, opts)
     steps = read_plan(plan, room)
     check_outputs(room, [s.object for s in steps], video=None)  # as saving will, before sampling
     story = tell(room, steps, seed=opts.seed, files=opts.object_checkpoints, steps=opts.steps,

@@ -9,7 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["scene_warnings"]
+__all__ = ["MIN_POINTS", "check_room", "scene_warnings"]
+
+#: The fewest points a room must have to be grounded in and sampled around.
+MIN_POINTS = 500
 
 #: How far (m) the floor (the 2nd percentile of z) may sit from z = 0 before a warning.
 FLOOR_TOLERANCE = 0.15
@@ -45,3 +48,21 @@ def scene_warnings(scene) -> list[str]:
                    "floor at z = 0; shift the scene, or if it is y-up convert it with "
                    f"`{_CONVERT}`")
     return out
+
+
+def check_room(room, pipeline: str = "auto") -> None:
+    """Refuse, before any model runs, a room that cannot serve an instruction:
+    :class:`~jaxmotion.errors.GenerateError` for an empty or near-empty scan (fewer than
+    :data:`MIN_POINTS` points) and, unless the affordance pipeline is asked for, a room in
+    which no object was found (a floor-only scan): the object-centric pipeline needs one, and
+    the affordance pipeline's guess is no longer taken silently."""
+    from jaxmotion.errors import GenerateError
+
+    if room.num_points < MIN_POINTS:
+        raise GenerateError(f"the scene has {room.num_points} point(s): too few to be a room "
+                            f"(at least {MIN_POINTS}); check the file, or scan more of the room")
+    if not room.objects and pipeline in ("auto", "object-centric"):
+        raise GenerateError("no object was found in this room (a floor or walls only?), so "
+                            "there is nothing to sit on or walk to; scan the furniture too, or "
+                            "pass --pipeline affordance to let the affordance model choose a "
+                            "place on its own")

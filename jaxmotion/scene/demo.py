@@ -15,7 +15,8 @@ import numpy as np
 
 from jaxmotion.errors import GenerateError
 
-__all__ = ["DEMO_POINTS", "DEMO_SEED", "build_demo_scene", "demo_scene", "load_scene_arg"]
+__all__ = ["DEMO_POINTS", "DEMO_SEED", "build_demo_scene", "demo_scene", "load_scene_arg",
+           "room_for"]
 
 DEMO_SEED = 22  # a dining room (L-shaped, 4.3 x 6.0 m) with one table and one chair by it
 DEMO_POINTS = 60_000
@@ -44,25 +45,36 @@ def build_demo_scene(num_points: int = DEMO_POINTS):
 
 
 def load_scene_arg(scene, num_points: int | None = None, *, up: str = "auto",
-                   unit: str = "auto"):
+                   unit: str = "auto", segment: bool = True):
     """``"demo"`` (:func:`demo_scene`), a path (any file :func:`jaxmotion.scene.load_scene`
     reads) or a :class:`~jaxmotion.scene.Scene`, made ready by
     :func:`jaxmotion.scene.prepare.prepare_room` (levelled; objects found when it has no
-    labels). What was done is said as :class:`~jaxmotion.errors.SceneNote` warnings;
-    :class:`GenerateError` when the file cannot be read."""
+    labels, unless ``segment`` is False). What was done is said as
+    :class:`~jaxmotion.errors.SceneNote` warnings; :class:`GenerateError` when the file cannot
+    be read."""
     import warnings
 
     from jaxmotion.errors import SceneNote
     from jaxmotion.scene import SceneError
     from jaxmotion.scene.prepare import prepare_room
 
+    if isinstance(scene, str) and scene == "demo":
+        return demo_scene()
     try:
-        room = prepare_room(scene, num_points=num_points, up=up, unit=unit)
+        room = prepare_room(scene, num_points=num_points, up=up, unit=unit, segment=segment)
     except SceneError as e:
         raise GenerateError(str(e)) from e
     for note in room.notes:
         warnings.warn(SceneNote(note), stacklevel=2)
     return room.scene
+
+
+def room_for(scene, opts):
+    """:func:`load_scene_arg` with ``generate``'s options: their points, up axis and unit;
+    objects found in a room without labels except for ``pipeline="affordance"``, whose
+    model chooses the place in such a room on its own."""
+    return load_scene_arg(scene, opts.num_points, up=opts.up, unit=opts.unit,
+                          segment=opts.pipeline != "affordance")
 
 
 # --------------------------------------------------------------------------- result

@@ -32,7 +32,7 @@ import numpy as np
 
 from jaxmotion.errors import SceneError
 
-__all__ = ["FLOOR_TOLERANCE", "MAX_ROOM", "MAX_STOREY", "TILT_TOLERANCE", "UNITS", "Floor",
+__all__ = ["AXIS_TO_Z", "FLOOR_TOLERANCE", "MAX_ROOM", "MAX_STOREY", "TILT_TOLERANCE", "UNITS", "Floor",
            "detect_unit", "estimate_normals", "find_floor", "level_scene", "rotation_between"]
 
 MAX_ROOM = 60.0  # m: the largest room side read as metres
@@ -193,7 +193,8 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.eye(3) + vx + vx @ vx / (1.0 + c)
 
 
-_AXIS_TO_Z = {  # a proper rotation taking each signed file axis to +z (y-up: x -> x, y -> z)
+#: A proper rotation taking each signed file axis ``(axis, sign)`` to +z (y-up: x -> x, y -> z).
+AXIS_TO_Z = {
     (2, 1): np.eye(3),
     (1, 1): np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
     (0, 1): np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),
@@ -230,12 +231,12 @@ def level_scene(scene, *, up: str = "auto", prior: str = "z", unit: str = "auto"
     axis = told if told is not None else {"z": 2, "y": 1}[prior]
     floor = _along(xyz, told, seed) if told is not None else find_floor(xyz, axis, seed)
     if floor is None or floor.inliers < 0.02:
-        coarse, fine = _AXIS_TO_Z[axis, 1], np.eye(3)
+        coarse, fine = AXIS_TO_Z[axis, 1], np.eye(3)
         z0 = float(np.percentile((xyz @ coarse.T)[:, 2], 1))
         notes.append("no floor plane found (fewer than 2 % of the points lie on one): the "
                      f"{'given' if told is not None else 'file convention'}'s up axis is kept")
     else:
-        coarse = _AXIS_TO_Z[floor.axis, floor.sign]
+        coarse = AXIS_TO_Z[floor.axis, floor.sign]
         normal = coarse @ floor.normal
         tilt = float(np.arccos(np.clip(normal[2], -1.0, 1.0)))
         fine = rotation_between(normal, [0.0, 0.0, 1.0]) if tilt > TILT_TOLERANCE else np.eye(3)

@@ -150,8 +150,9 @@ def _label(scene, notes: tuple, *, segment: bool, seed: int):
 def prepare_room(source, *, num_points: int | None = None, up: str = "auto",
                  unit: str = "auto", segment: bool = True, seed: int = 0,
                  cache: bool = True) -> PreparedRoom:
-    """The room ``source`` ready for grounding: ``"demo"``, a path (any file or scan
-    :func:`jaxmotion.scene.load_scene` reads) or a :class:`~jaxmotion.scene.Scene`.
+    """The room ``source`` ready for grounding: a path (any file or scan
+    :func:`jaxmotion.scene.load_scene` reads) or a :class:`~jaxmotion.scene.Scene` (the
+    demo room is one: :func:`jaxmotion.scene.demo.demo_scene`).
 
     Args:
       num_points: points sampled from a mesh / kept of a cloud (as :func:`load_scene`).
@@ -166,10 +167,6 @@ def prepare_room(source, *, num_points: int | None = None, up: str = "auto",
     if isinstance(source, Scene):
         scene, notes, labels = _label(source, (), segment=segment, seed=seed)
         return PreparedRoom(scene, notes, labels)
-    if isinstance(source, str) and source == "demo":
-        from jaxmotion.scene.demo import demo_scene
-
-        return PreparedRoom(demo_scene(), (), "file")
     path = Path(source)
     from jaxmotion.scene.scans import find_scan
 

@@ -39,7 +39,8 @@ def _object_row(o: dict) -> dict:
     lo, hi = np.asarray(o["bbox_min"], float), np.asarray(o["bbox_max"], float)
     row = {"id": o["id"], "category": o["category"],
            "centre": np.round((lo + hi) / 2, 3).tolist(), "size": np.round(hi - lo, 3).tolist()}
-    row.update({k: o[k] for k in ("points", "confidence", "source") if k in o})
+    row.update({k: o[k] for k in ("points", "confidence", "source", "surface_height", "affords")
+                if k in o})
     return row
 
 

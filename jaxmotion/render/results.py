@@ -120,8 +120,8 @@ def load_motion(path) -> SavedMotion:
 
 
 def scene_for_motion(motion: SavedMotion, motion_path, scene=None, num_points=None):
-    """The room of a saved motion: ``scene`` (``"demo"`` or a file / ScanNet folder) when
-    given; else the demo room for a motion made in it, or a dataset sample's
+    """The room of a saved motion: ``scene`` (``"demo"`` or a file / ScanNet folder, levelled
+    and labelled as ``generate`` prepared it) when given; else the demo room for a motion made in it, or a dataset sample's
     ``scenes/<scene_id>.npz`` in a folder above the sample. ``ValueError`` saying to pass
     ``--scene`` otherwise."""
     from jaxmotion.scene import load_scene
@@ -132,7 +132,13 @@ def scene_for_motion(motion: SavedMotion, motion_path, scene=None, num_points=No
             return demo_scene()
         if not Path(scene).exists():
             raise FileNotFoundError(f"--scene {scene}: no such file or folder")
-        return load_scene(scene, num_points=num_points)
+        import warnings
+
+        from jaxmotion.scene.demo import load_scene_arg
+
+        with warnings.catch_warnings():  # the room as generate prepared it (notes said then)
+            warnings.simplefilter("ignore", UserWarning)
+            return load_scene_arg(str(scene), num_points)
     if motion.kind == "generate" and motion.scene_name == "demo":
         return demo_scene()
     if motion.kind == "sample" and motion.scene_name:

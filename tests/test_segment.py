@@ -212,3 +212,27 @@ def test_generate_on_an_unlabelled_scan_in_millimetres(tmp_path, monkeypatch, ca
     on = lambda a, b: bool(np.all((end[:2] > a[:2] - 0.1) & (end[:2] < b[:2] + 0.1)))  # noqa
     assert on(lo, hi) or on(alo, ahi), end  # on the demo's chair (or its armchair)
     assert 0.4 < end[2] < 0.85  # seated
+
+
+def test_an_unnamed_surface_that_affords_sitting_is_a_seat():
+    """"sit" and a story's sit step take an object whose category is unknown when its surface
+    affords sitting (segmentation's ``affords``); "lie" is refused without a place to lie."""
+    from jaxmotion.grounding import ground_candidates
+    from jaxmotion.grounding.phrasing import takes
+    from jaxmotion.planning.story import read_plan
+    from jaxmotion.scene import Scene
+
+    rng = np.random.default_rng(3)
+    seat = _box([0, 0, 0], [0.5, 0.5, 0.45], 300, rng)
+    table = _box([1.5, 0, 0], [2.5, 1.0, 0.75], 300, rng)
+    room = Scene(np.concatenate([seat, table]), instance=np.repeat([0, 1], 300), objects=(
+        {"id": 0, "category": "object", "bbox_min": seat.min(0).tolist(),
+         "bbox_max": seat.max(0).tolist(), "surface_height": 0.45, "affords": ["sit"]},
+        {"id": 1, "category": "table", "bbox_min": table.min(0).tolist(),
+         "bbox_max": table.max(0).tolist()}))
+    assert takes("sit", room.objects[0]) and takes("stand_up", room.objects[0])
+    assert not takes("lie", room.objects[0]) and not takes("sit", room.objects[1])
+    assert [o["id"] for o in ground_candidates(room, "sit down").objects] == [0]
+    assert [o["id"] for o in ground_candidates(room, "sit on the couch").objects] == [0]
+    assert ground_candidates(room, "lie down").error
+    assert read_plan([{"action": "sit", "object": 0}], room)[0].object == 0

@@ -222,7 +222,7 @@ def split_touching(xyz: np.ndarray, cell: float = VOXEL, step: float = 0.08,
     apart from above. The group's top-view cells (``cell`` m) are joined where their top
     heights differ by at most ``step``; then a part thinner than ``thin`` m (a backrest, an
     armrest, a headboard, a cistern: twice its largest inscribed radius) joins the lowest
-    lower part it touches (the seat it rises from), and a part under ``small`` m² the part it shares the longest border with. One
+    lower part it shares the longest border with (the seat it rises from), and a part under ``small`` m² the part it shares the longest border with. One
     object gives one part."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
@@ -283,7 +283,7 @@ def split_touching(xyz: np.ndarray, cell: float = VOXEL, step: float = 0.08,
             if area < small:
                 into = max(nbrs, key=lambda y: border[r, y])
             elif w <= thin and (lower := [y for y in nbrs if info[y][0] < h]):
-                into = min(lower, key=lambda y: (info[y][0], -border[r, y]))
+                into = max(lower, key=lambda y: (border[r, y], -info[y][0]))
             else:
                 continue
             region[region == r] = into

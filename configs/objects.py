@@ -22,7 +22,8 @@ from jaxmotion.train.config import OptimConfig, TrainConfig
 @dataclasses.dataclass(frozen=True)
 class ObjectsTrainConfig(TrainConfig):
     """Adds ``rooms`` (synthetic rooms scanned for data, seeds ``room_seed ..``), their
-    ``room_points`` before degradation (built on ``loader_workers`` processes), ``val_rooms`` (the last ones: validation) and the
+    ``room_points`` before degradation (built on ``loader_workers`` processes), ``val_rooms``
+    (the last ones: validation) and the
     cross-entropy's ``label_smoothing``."""
 
     task: str = "objects"

@@ -185,7 +185,8 @@ def test_point_cloud_ply_keeps_all_properties(tmp_path, binary):
     rgb = np.stack([data[c] for c in ("red", "green", "blue")], 1) / 255
     np.testing.assert_allclose(scene.rgb, rgb, atol=1e-7)
     # NYU40's label 0 is "unannotated": unknown (-1); object ids are kept as they are
-    np.testing.assert_array_equal(scene.semantic, np.where(data["label"] == 0, -1, data["label"].astype(int)))
+    label = data["label"].astype(int)
+    np.testing.assert_array_equal(scene.semantic, np.where(label == 0, -1, label))
     np.testing.assert_array_equal(scene.instance, data["objectId"])
 
 

@@ -180,3 +180,34 @@ def test_a_stand_up_is_cut_once_the_body_is_up():
     assert stood_up(soft, 0.6, 0.944) == first(soft, 0.90) + 15 == 72
     assert stood_up(0.6 + 0.1 * rise, 0.6, 0.944) == 120  # never up: all of it
     assert stood_up(np.full(10, 0.95), 0.6, 0.944) == 10  # up from the start, short clip
+
+
+def test_a_step_whose_object_cannot_be_approached_names_those_that_can():
+    """Chair 4 fenced in (a ring of furniture 1.3 m around it, beyond sitting reach) and a
+    second chair in the open: the plan is refused before any model loads, naming chair 50."""
+    from jaxmotion.scene import Scene
+    from jaxmotion.scene.demo import demo_scene
+    from jaxmotion.planning.story import tell
+
+    d = demo_scene()
+    chair = next(o for o in d.objects if o["id"] == 4)
+    lo, hi = np.array(chair["bbox_min"]) - 1.3, np.array(chair["bbox_max"]) + 1.3
+    rng = np.random.default_rng(0)
+    n = 20_000
+    t, z, side = rng.uniform(0, 1, n), rng.uniform(0, 1.2, n), rng.integers(0, 4, n)
+    x = np.where(side < 2, lo[0] + t * (hi[0] - lo[0]), np.where(side == 2, lo[0], hi[0]))
+    y = np.where(side >= 2, lo[1] + t * (hi[1] - lo[1]), np.where(side == 0, lo[1], hi[1]))
+    fence = np.stack([x, y, z], 1)
+    sel = d.instance == 4
+    copy = d.xyz[sel] + [0.6, 2.4, 0.0]
+    room = Scene(np.concatenate([d.xyz, fence, copy]),
+                 semantic=np.concatenate([d.semantic, np.full(n, 3), d.semantic[sel]]),
+                 instance=np.concatenate([d.instance, np.full(n, 60), np.full(sel.sum(), 50)]),
+                 objects=(*d.objects,
+                          {"id": 60, "category": "cabinet", "bbox_min": fence.min(0).tolist(),
+                           "bbox_max": fence.max(0).tolist()},
+                          {"id": 50, "category": "chair", "bbox_min": copy.min(0).tolist(),
+                           "bbox_max": copy.max(0).tolist()}))
+    with pytest.raises(GenerateError, match="step 2 .*these can be reached: chair 50"):
+        tell(room, [{"action": "walk", "object": 9}, {"action": "sit", "object": 4}],
+             files="/nonexistent")  # refused before the models' files are looked at

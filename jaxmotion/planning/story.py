@@ -40,7 +40,7 @@ from jaxmotion.errors import GenerateError
 from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
 __all__ = ["PASSABLE", "PREFIX", "Step", "Story", "Teller", "choose", "describe", "read_plan",
-           "stood_up", "story_generation", "story_result", "tell"]
+           "reachable_mates", "stood_up", "story_generation", "story_result", "tell"]
 
 #: Frames of the previous motion each step or window starts from (held by inpainting).
 PREFIX = 10
@@ -207,6 +207,24 @@ def _goal(grid, scene, obj, start, action):
         except PlanningError:
             if far == WALK_WIDER[-1]:
                 raise
+
+
+def reachable_mates(grid, scene, obj, start, action, objects) -> list[str]:
+    """The other objects of ``obj``'s category that a walk from ``start`` (xy) can reach for
+    ``action`` (``["chair 5", ...]``): what a story can name instead of an object that cannot
+    be approached."""
+    from jaxmotion.motion.planner import PlanningError
+
+    out = []
+    for o in objects:
+        if o["id"] == obj["id"] or o["category"] != obj["category"]:
+            continue
+        try:
+            _goal(grid, scene, o, start, action)
+        except PlanningError:
+            continue
+        out.append(f"{o['category']} {o['id']}")
+    return out
 
 
 def stood_up(pelvis_z, seated: float, stand: float, hold: int = 15) -> int:
@@ -457,12 +475,16 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
         if step.action == "stand_up":
             continue
         obj = objects[step.object]
+        start = where if where is not None else scene.xyz[scene.instance == obj["id"],
+                                                          :2].mean(0)
         try:
-            start = where if where is not None else scene.xyz[scene.instance == obj["id"],
-                                                              :2].mean(0)
             where = _goal(grid, scene, obj, start, step.action)
         except PlanningError as e:
-            raise GenerateError(f"step {i} ({step.action} on object {step.object}): {e}") from e
+            others = reachable_mates(grid, scene, obj, start, step.action, objects.values())
+            hint = (f"; of its class these can be reached: {', '.join(others)}" if others else
+                    f"; no other {obj['category']} of this room can be reached either")
+            raise GenerateError(f"step {i} ({step.action} on object {step.object}): {e}"
+                                f"{hint}") from e
     files = resolve_object_checkpoints(files)
     teller = Teller(scene, files, seed, SamplerSpec("ddim", steps, guidance=guidance))
     for i, step in enumerate(plan, 1):

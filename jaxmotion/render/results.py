@@ -121,9 +121,9 @@ def load_motion(path) -> SavedMotion:
 
 def scene_for_motion(motion: SavedMotion, motion_path, scene=None, num_points=None):
     """The room of a saved motion: ``scene`` (``"demo"`` or a file / ScanNet folder, levelled
-    and labelled as ``generate`` prepared it) when given; else the demo room for a motion made in it, or a dataset sample's
-    ``scenes/<scene_id>.npz`` in a folder above the sample. ``ValueError`` saying to pass
-    ``--scene`` otherwise."""
+    and labelled as ``generate`` prepared it) when given; else the demo room for a motion made
+    in it, or a dataset sample's ``scenes/<scene_id>.npz`` in a folder above the sample.
+    ``ValueError`` saying to pass ``--scene`` otherwise."""
     from jaxmotion.scene import load_scene
     from jaxmotion.scene.demo import demo_scene
 

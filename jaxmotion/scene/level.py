@@ -32,7 +32,8 @@ import numpy as np
 
 from jaxmotion.errors import SceneError
 
-__all__ = ["AXIS_TO_Z", "FLOOR_TOLERANCE", "MAX_ROOM", "MAX_STOREY", "TILT_TOLERANCE", "UNITS", "Floor",
+__all__ = ["AXIS_TO_Z", "FLOOR_TOLERANCE", "MAX_ROOM", "MAX_STOREY", "TILT_TOLERANCE", "UNITS",
+           "Floor",
            "detect_unit", "estimate_normals", "find_floor", "level_scene", "rotation_between"]
 
 MAX_ROOM = 60.0  # m: the largest room side read as metres
@@ -244,7 +245,8 @@ def level_scene(scene, *, up: str = "auto", prior: str = "z", unit: str = "auto"
             (xyz @ coarse.T)[np.abs(xyz @ floor.normal - floor.offset) <= _PLANE_TOL, 2]))
         default = (2, 1) if prior == "z" else (1, 1)
         if (floor.axis, floor.sign) != default and told is None:
-            notes.append(f"up axis found from the floor: the file is {_AXIS_NAMES[floor.axis, floor.sign]}"
+            named = _AXIS_NAMES[floor.axis, floor.sign]
+            notes.append(f"up axis found from the floor: the file is {named}"
                          f"-up, turned to z-up ({floor.inliers:.0%} of the points on the floor)")
         elif told is not None and (floor.axis, floor.sign) != (told, 1):
             notes.append(f"the floor was found facing {_AXIS_NAMES[floor.axis, floor.sign]}")

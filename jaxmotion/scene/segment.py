@@ -221,9 +221,9 @@ def split_touching(xyz: np.ndarray, cell: float = VOXEL, step: float = 0.08,
     (a chair against a table, a sofa against a bookshelf, a toilet against a sink) told
     apart from above. The group's top-view cells (``cell`` m) are joined where their top
     heights differ by at most ``step``; then a part thinner than ``thin`` m (a backrest, an
-    armrest, a headboard, a cistern: twice its largest inscribed radius) joins the lowest
-    lower part it shares the longest border with (the seat it rises from), and a part under ``small`` m² the part it shares the longest border with. One
-    object gives one part."""
+    armrest, a headboard, a cistern: twice its largest inscribed radius) joins the lower
+    part it shares the longest border with (the seat it rises from), and a part under
+    ``small`` m² the part it shares the longest border with. One object gives one part."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 

@@ -101,11 +101,15 @@ def _cmd_scene_segment(args: argparse.Namespace) -> int:
 
 
 def _cmd_scene_convert(args: argparse.Namespace) -> int:
-    from jaxmotion.scene import load_scene, save_scene
+    from jaxmotion.scene import save_scene
+    from jaxmotion.scene.prepare import prepare_room
 
-    scene = load_scene(args.src, num_points=args.points, seed=args.seed, up=args.up)
-    out = save_scene(scene, args.dst)
-    print(f"wrote {out} ({scene.num_points} points)")
+    room = prepare_room(args.src, num_points=args.points, seed=args.seed, up=args.up,
+                        unit=args.unit, segment=False, cache=False)  # levelled, as it is
+    out = save_scene(room.scene, args.dst)
+    for note in room.notes:
+        print(f"note: {note}", file=sys.stderr)
+    print(f"wrote {out} ({room.scene.num_points} points)")
     return 0
 
 
@@ -438,7 +442,8 @@ def build_parser() -> argparse.ArgumentParser:
     scene_common(q)
     q.set_defaults(func=_cmd_scene_segment)
 
-    q = scene_sub.add_parser("convert", help="load a scene and save it as jaxmotion .npz")
+    q = scene_sub.add_parser("convert", help="load a scene, put it in jaxmotion's frame (metres, "
+                             "z-up, floor at 0) and save it as jaxmotion .npz")
     q.add_argument("src", help="input mesh or point cloud, or a ScanNet scan folder")
     q.add_argument("dst", help="output .npz")
     scene_common(q)

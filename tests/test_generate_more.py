@@ -116,7 +116,7 @@ def test_text_naming_no_object_tiles_the_room(ckpt):
                            grounding="adm", **FAST)
     assert r.grounding == "adm peak" and r.target_id in {int(o["id"]) for o in r.scene.objects}
     r = jaxmotion.generate(_bare_demo(), "dance around for a while", checkpoints=ckpt,
-                           fit=False, pipeline="affordance", **FAST)
+                           fit=False, **FAST)
     assert r.target_id is None and r.joints.shape == (1, 120, 22, 3)
 
 
@@ -340,7 +340,7 @@ def test_text_only_adm_when_no_target_is_known(ckpt, tmp_path, monkeypatch):
 
     monkeypatch.setattr(G, "load_pipeline", spy)
     r = jaxmotion.generate(_bare_demo(), "dance around for a while", checkpoints=folder,
-                           fit=False, aot=False, pipeline="affordance", **FAST)
+                           fit=False, aot=False, **FAST)
     assert r.target_id is None and used and set(used) == {G.TEXT_ADM}
     used.clear()
     r = jaxmotion.generate("demo", "sit on the chair next to the table", checkpoints=folder,

@@ -1,4 +1,4 @@
-"""``generate`` gives the same joints, bit for bit, as the recorded reference.
+"""``generate`` gives the same joints as the recorded reference (to 1 mm: :data:`ATOL`).
 
 ``tests/data/generate_reference.npz`` holds the joints that ``generate`` made with the shipped
 checkpoints before the package was restructured into stages (grounding / pipelines / export):
@@ -49,6 +49,11 @@ CASES = {  # name: (text, object_id, seed, grounding)
     "room_7": ("sit on the chair", None, 5, "adm"),
 }
 FAST = ("room_5",)  # the choice among candidates; the rest run with -m slow
+#: Metres. XLA's CPU code depends on the instruction set, so the recorded joints hold bit for bit
+#: only on the CPU that recorded them (elsewhere they differ by ~1e-5 m); a change of behaviour
+#: moves them by centimetres. Bit-identity is checked within one machine instead: the same seed
+#: twice (tests/test_generate.py, tests/test_story.py) and a resumed training.
+ATOL = 1e-3
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +69,7 @@ def test_demo_room_is_unchanged():
 
     r = jaxmotion.generate("demo", "sit on the chair next to the table", samples=2, seed=3,
                            fit=False, pipeline="affordance")
-    np.testing.assert_array_equal(r.joints, np.load(REFERENCE)["demo"])
+    np.testing.assert_allclose(r.joints, np.load(REFERENCE)["demo"], rtol=0, atol=ATOL)
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=() if n in FAST else pytest.mark.slow)
@@ -75,7 +80,7 @@ def test_synthetic_room_is_unchanged(room, name):
     text, object_id, seed, grounding = CASES[name]
     r = jaxmotion.generate(room, text, samples=1, seed=seed, fit=False, object_id=object_id,
                            pipeline="affordance", grounding=grounding)
-    np.testing.assert_array_equal(r.joints, np.load(REFERENCE)[name])
+    np.testing.assert_allclose(r.joints, np.load(REFERENCE)[name], rtol=0, atol=ATOL)
 
 
 def record() -> None:

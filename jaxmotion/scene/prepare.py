@@ -11,8 +11,8 @@ the file again or derives its own table::
             no labels at all (a phone scan, a mesh, a point cloud):
                 object discovery (:func:`jaxmotion.scene.segment.segment_scene`)
 
-The labelled room is cached per file (its content, the options and the segmentation's
-version: ``$JAXMOTION_CACHE/rooms/``, ``JAXMOTION_CACHE=off`` for none), so a second run on
+The labelled room is cached per file (its content, the options, the segmentation's version
+and the classifier's weights: ``$JAXMOTION_CACHE/rooms/``, ``JAXMOTION_CACHE=off`` for none), so a second run on
 the same file does not segment it again. Notes say what was done (unit, turn, floor shift,
 objects found).
 """
@@ -20,6 +20,7 @@ objects found).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import os
@@ -85,12 +86,9 @@ def instances_from_classes(scene):
 
 def _digest(path: Path, options: dict) -> str:
     h = hashlib.sha256(json.dumps(options, sort_keys=True).encode())
-    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
-    for f in files:
-        h.update(str(f.name).encode())
-        with open(f, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                h.update(block)
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
     return h.hexdigest()[:24]
 
 
@@ -174,7 +172,7 @@ def prepare_room(source, *, num_points: int | None = None, up: str = "auto",
     options = {"num_points": num_points, "up": up, "unit": unit, "segment": segment,
                "seed": seed, "version": _version()}
     key = None
-    if cache and path.exists():
+    if cache and path.is_file():  # a scan folder carries its labels: nothing to keep
         key, hit = _cached(path, options)
         if hit is not None:
             return hit
@@ -198,8 +196,13 @@ def prepare_room(source, *, num_points: int | None = None, up: str = "auto",
     return room
 
 
+@functools.lru_cache(maxsize=1)
 def _version() -> str:
-    from jaxmotion.models.object_classifier import OBJECTS_VERSION
+    """What a cached labelled room depends on besides the file: the segmentation's version
+    and the shipped classifier's weights."""
+    from jaxmotion.models.object_classifier import OBJECTS_VERSION, shipped_object_classifier
     from jaxmotion.scene.segment import SEGMENT_VERSION
 
-    return f"{SEGMENT_VERSION}/{OBJECTS_VERSION}"
+    weights = shipped_object_classifier()
+    digest = hashlib.sha256(weights.read_bytes()).hexdigest()[:12] if weights.is_file() else ""
+    return f"{SEGMENT_VERSION}/{OBJECTS_VERSION}/{digest}"

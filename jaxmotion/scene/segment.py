@@ -21,7 +21,9 @@ everything after it (grounding, planning, the pipelines, the viewer, the video) 
    colours differ from the synthetic rooms' or that have none. A small classifier trained on
    the synthetic rooms' instances found this way (``configs/objects.py``, shipped as
    ``jaxmotion/assets/objects.safetensors``) names it, with its probability as the object's
-   ``confidence``; below :data:`MIN_CONFIDENCE` the category is ``"object"``.
+   ``confidence``; below :data:`MIN_CONFIDENCE`, or for a piece lower than :data:`MIN_TOP` or
+   narrower than :data:`MIN_SIDE` (a fragment of a bed frame, a skirting board; doors, windows
+   and pictures are thin and only need the height), the category is ``"object"``.
 4. **affordances** (:func:`support_surfaces`): a roughly flat surface 0.35–0.65 m high with
    room for a body is a seat, a long flat one 0.3–0.8 m high a place to lie: they are recorded
    as ``surface_height`` and ``affords`` (``["sit"]``, ``["sit", "lie"]``), so that "sit" and
@@ -39,18 +41,20 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["CEILING", "FLOOR", "FLOOR_BAND", "MIN_CONFIDENCE", "MIN_POINTS", "PLANE_TOL",
+__all__ = ["CEILING", "FLOOR", "FLOOR_BAND", "MIN_CONFIDENCE", "MIN_POINTS", "MIN_SIDE", "MIN_TOP",
+           "PLANE_TOL",
            "SEGMENT_VERSION", "VOXEL", "WALL", "Structure", "find_components", "find_instances",
            "find_structure", "split_touching",
            "object_features", "segment_scene", "support_surfaces"]
 
-SEGMENT_VERSION = "jm-segment-1"  # bump when the labels a room gets change (caches key on it)
+SEGMENT_VERSION = "jm-segment-2"  # bump when the labels a room gets change (caches key on it)
 FLOOR, WALL, CEILING = 2, 1, 22  # semantic ids (NYU40 / jaxmotion)
 FLOOR_BAND = 0.03  # m above z = 0 that is floor
 PLANE_TOL = 0.035  # m: a point this close to a wall / ceiling plane belongs to it
 VOXEL = 0.05  # m: connectivity grid of the instances
 MIN_POINTS = 40  # points of the smallest object
 MIN_CONFIDENCE = 0.35  # below this the classifier's category is not used ("object")
+MIN_TOP, MIN_SIDE = 0.3, 0.15  # m: lower, or narrower, than any furniture (a bed frame's sliver)
 NUM_FEATURES = 28
 _SAMPLE = 20_000
 _TRIALS = 400
@@ -419,7 +423,9 @@ def segment_scene(scene, *, seed: int = 0, classifier=None):
         best = int(np.argmax(probs[i]))
         conf = float(probs[i, best])
         cat = classifier.categories[best]
-        if conf < MIN_CONFIDENCE or cat == "object":
+        flat = cat in ("door", "window", "picture")  # thin by nature: only their height counts
+        small = feats[i, 1] < MIN_TOP or (feats[i, 4] < MIN_SIDE and not flat)  # zmax, short side
+        if conf < MIN_CONFIDENCE or cat == "object" or small:
             cat = "object"
         else:
             named += 1

@@ -236,3 +236,34 @@ def test_an_unnamed_surface_that_affords_sitting_is_a_seat():
     assert [o["id"] for o in ground_candidates(room, "sit on the couch").objects] == [0]
     assert ground_candidates(room, "lie down").error
     assert read_plan([{"action": "sit", "object": 0}], room)[0].object == 0
+
+
+def test_the_object_classifier_trains_and_its_numpy_forward_is_flax_s(tmp_path):
+    """``configs/objects.py`` at the tiny preset: features built in the workdir, a weights
+    file the loader reads, the NumPy forward equal to the Flax module's."""
+    import jax
+    from flax import nnx
+
+    from jaxmotion.config import load_config
+    from jaxmotion.models.object_classifier import (
+        ObjectClassifierConfig,
+        load_object_classifier,
+        make_object_classifier,
+    )
+    from jaxmotion.models.weights import apply_weights, load_weights
+    from jaxmotion.train import train
+    from jaxmotion.train.tasks import get_task
+
+    cfg = load_config("configs/objects.py", ["preset=tiny", f"workdir={tmp_path / 'run'}",
+                                              "loader_workers=1"])
+    train(cfg, get_task(cfg))
+    clf = load_object_classifier(tmp_path / "run")
+    tensors, config = load_weights(tmp_path / "run" / "model.safetensors")
+    net = make_object_classifier(ObjectClassifierConfig(**config["model"]), rngs=nnx.Rngs(0))
+    apply_weights(net, tensors)
+    with np.load(tmp_path / "run" / "features.npz") as z:
+        x = z["features"][:16]
+    want = jax.nn.softmax(net((x - tensors["feature_mean"]) / tensors["feature_std"],
+                              deterministic=True))
+    np.testing.assert_allclose(clf(x), np.asarray(want), atol=1e-5)
+    assert clf.categories[-1] == "object" and len(clf.categories) == clf(x).shape[1]

@@ -246,8 +246,10 @@ def level_scene(scene, *, up: str = "auto", prior: str = "z", unit: str = "auto"
         default = (2, 1) if prior == "z" else (1, 1)
         if (floor.axis, floor.sign) != default and told is None:
             named = _AXIS_NAMES[floor.axis, floor.sign]
-            notes.append(f"up axis found from the floor: the file is {named}"
-                         f"-up, turned to z-up ({floor.inliers:.0%} of the points on the floor)")
+            turned = ("kept as it is" if (floor.axis, floor.sign) == (2, 1) else "turned to z-up")
+            notes.append(f"up axis found from the floor: the file is {named}-up, not "
+                         f"{'y' if prior == 'y' else 'z'}-up as its format's convention has it: "
+                         f"{turned} ({floor.inliers:.0%} of the points on the floor)")
         elif told is not None and (floor.axis, floor.sign) != (told, 1):
             notes.append(f"the floor was found facing {_AXIS_NAMES[floor.axis, floor.sign]}")
         if tilt > TILT_TOLERANCE:

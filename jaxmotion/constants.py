@@ -15,7 +15,7 @@
 from __future__ import annotations
 
 __all__ = ["ACTION_CLASSES", "AFFORDANCE_JOINTS", "AFFORDANCE_SIGMA", "FOOT_JOINTS", "NUM_JOINTS",
-           "PASSABLE", "SCENE_FPS", "STRUCTURE", "TEXT_ENCODER", "UNKNOWN_ACTION"]
+           "PASSABLE", "SCENE_FPS", "STRUCTURE", "STRUCTURE_IDS", "TEXT_ENCODER", "UNKNOWN_ACTION"]
 
 SCENE_FPS: float = 30.0
 NUM_JOINTS: int = 22
@@ -30,3 +30,5 @@ ACTION_CLASSES: tuple[str, ...] = ("walk", "sit", "stand_up", "lie", "unknown")
 UNKNOWN_ACTION: int = len(ACTION_CLASSES) - 1
 #: A room's own surfaces: labelled in scans, never objects (targets, furniture) themselves.
 STRUCTURE: tuple[str, ...] = ("wall", "floor", "ceiling")
+#: Their semantic ids (NYU40's; jaxmotion's synthetic rooms use the same for wall and floor).
+STRUCTURE_IDS: dict[str, int] = {"wall": 1, "floor": 2, "ceiling": 22}

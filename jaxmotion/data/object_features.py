@@ -5,10 +5,10 @@ Each room (``sample_room(seed)``) is scanned (:func:`~jaxmotion.scene.rooms.room
 and degraded as real scans are (:func:`degrade`): point density, sensor noise, holes, walls
 missing from a partial scan, undersides and backs unseen, sizes varied; its normals are thrown
 away and estimated from the points, as for a point cloud without them. Segmentation then runs
-as on a user's room (:func:`jaxmotion.scene.segment.find_structure` /
-:func:`~jaxmotion.scene.segment.find_instances`), and each instance found gets the category of
-the true object holding most of its points (``"object"`` when most are clutter or structure)
-and its features (:func:`jaxmotion.scene.segment.object_features`). Colour is never used.
+as on a user's room (:func:`jaxmotion.scene.segment.discover`), and each instance found gets
+the category of the true object holding most of its points (``"object"`` when most are
+clutter or structure) and its features (:func:`jaxmotion.scene.segment.object_features`).
+Colour is never used.
 
 :func:`build_object_features` writes ``features.npz`` (``features [M, F]``, ``labels [M]``,
 ``room [M]``, ``categories``) resumably, room by room; the same seeds give the same file.
@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion._atomic import atomic_open
+from jaxmotion.scene.segment import NUM_FEATURES
 
 __all__ = ["CATEGORIES", "FEATURES_VERSION", "build_object_features", "degrade",
            "room_objects"]
@@ -67,25 +68,17 @@ def degrade(scene, rng: np.random.Generator):
 def room_objects(scene, seed: int = 0) -> tuple[np.ndarray, list[str], np.ndarray]:
     """Segment a (degraded) synthetic scan as a user's room is, and label what is found:
     ``(features [M, F], true categories [M], instance ids [N])``."""
-    from jaxmotion.scene.level import estimate_normals
-    from jaxmotion.scene.segment import NUM_FEATURES, find_instances, find_structure, \
-        object_features
+    from jaxmotion.scene.segment import discover
 
-    xyz = np.asarray(scene.xyz, np.float64)
-    normal = estimate_normals(xyz)
-    structure = find_structure(xyz, seed)
-    instance = find_instances(xyz, structure)
+    found = discover(scene.xyz, seed)
     names = {o["id"]: o["category"] for o in scene.objects}
-    feats, labels = [], []
-    for i in range(int(instance.max()) + 1):
-        sel = instance == i
-        feats.append(object_features(xyz[sel], normal[sel], structure.walls, structure.top))
+    labels = []
+    for sel in found.groups:
         ids, counts = np.unique(scene.instance[sel], return_counts=True)
         true = ids[np.argmax(counts)]
         cat = names.get(int(true), "object") if true >= 0 else "object"
         labels.append(cat if cat in CATEGORIES else "object")
-    return (np.stack(feats) if feats else np.zeros((0, NUM_FEATURES), np.float32), labels,
-            instance)
+    return found.features, labels, found.instance
 
 
 def build_object_features(path, *, rooms: int, seed: int = 0, points: int = 80_000,
@@ -108,7 +101,7 @@ def build_object_features(path, *, rooms: int, seed: int = 0, points: int = 80_0
     def save():
         with atomic_open(path, "wb") as f:
             np.savez(f, features=np.asarray(data["features"], np.float32).reshape(
-                -1, _num_features()), labels=np.asarray(data["labels"], np.int64),
+                -1, NUM_FEATURES), labels=np.asarray(data["labels"], np.int64),
                 room=np.asarray(data["room"], np.int64), categories=np.array(CATEGORIES),
                 settings=np.array(json.dumps(settings)))
 
@@ -148,9 +141,3 @@ def _one_room(args) -> tuple[np.ndarray, list[str]]:
     scene = degrade(room_to_scene(sample_room(seed + r), points, rng), rng)
     feats, labels, _ = room_objects(scene, seed=r)
     return feats, labels
-
-
-def _num_features() -> int:
-    from jaxmotion.scene.segment import NUM_FEATURES
-
-    return NUM_FEATURES

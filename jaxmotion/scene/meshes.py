@@ -12,6 +12,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from jaxmotion.constants import STRUCTURE_IDS
 from jaxmotion.errors import SceneError
 
 __all__ = ["DEFAULT_MESH_POINTS", "GREY", "INSTANCE_PROPERTIES", "SEMANTIC_PROPERTIES",
@@ -21,7 +22,6 @@ DEFAULT_MESH_POINTS = 100_000
 SEMANTIC_PROPERTIES = ("label",)  # ScanNet / NYU40 per-vertex semantic id
 INSTANCE_PROPERTIES = ("instance", "objectId", "instance_id")
 GREY = 0.5  # the colour of points whose file has none
-_STRUCTURE_IDS = (1, 2, 22)  # NYU40 wall, floor, ceiling (jaxmotion's ids agree)
 
 
 def _ply_vertex_property(geom, names, n):
@@ -61,7 +61,7 @@ def _vertex_colors(geom, n):
 def _unlabelled_group(sem: np.ndarray) -> bool:
     """Whether the points of one instance id are mostly unannotated or structure (wall,
     floor, ceiling): the "no object" id of files that count their objects from 1."""
-    other = (sem < 0) | np.isin(sem, _STRUCTURE_IDS)
+    other = (sem < 0) | np.isin(sem, list(STRUCTURE_IDS.values()))
     return bool(other.mean() >= 0.5)
 
 

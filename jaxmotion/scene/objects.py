@@ -69,5 +69,4 @@ def table_from_labels(xyz: np.ndarray, semantic: np.ndarray,
 def category_ids() -> dict[str, int]:
     """Category name → semantic id, the inverse of :func:`category_names` (jaxmotion's ids
     for its categories, NYU40's for the others)."""
-    return {name: i for i, name in sorted(category_names().items(), reverse=True)} | {
-        name: i for i, name in category_names().items() if i > 40}
+    return {name: i for i, name in category_names().items()}  # the names are unique

@@ -41,14 +41,17 @@ import dataclasses
 
 import numpy as np
 
+from jaxmotion.constants import STRUCTURE_IDS
+
 __all__ = ["CEILING", "FLOOR", "FLOOR_BAND", "MIN_CONFIDENCE", "MIN_POINTS", "MIN_SIDE", "MIN_TOP",
            "PLANE_TOL",
-           "SEGMENT_VERSION", "VOXEL", "WALL", "Structure", "find_components", "find_instances",
+           "SEGMENT_VERSION", "VOXEL", "WALL", "Discovery", "Structure", "discover",
+           "find_components", "find_instances", "split_groups",
            "find_structure", "split_touching",
            "object_features", "segment_scene", "support_surfaces"]
 
 SEGMENT_VERSION = "jm-segment-2"  # bump when the labels a room gets change (caches key on it)
-FLOOR, WALL, CEILING = 2, 1, 22  # semantic ids (NYU40 / jaxmotion)
+FLOOR, WALL, CEILING = (STRUCTURE_IDS[k] for k in ("floor", "wall", "ceiling"))  # semantic ids
 FLOOR_BAND = 0.03  # m above z = 0 that is floor
 PLANE_TOL = 0.035  # m: a point this close to a wall / ceiling plane belongs to it
 VOXEL = 0.05  # m: connectivity grid of the instances
@@ -178,29 +181,35 @@ def find_components(xyz: np.ndarray, mask: np.ndarray, voxel: float = VOXEL,
     return out
 
 
+def split_groups(xyz: np.ndarray, group: np.ndarray) -> np.ndarray:
+    """``[N]`` instance ids from connected groups ``group [N]`` (−1: none): each group split
+    where objects touch (:func:`split_touching`), parts under :data:`MIN_POINTS` points
+    dropped (−1), the rest numbered from 0 in group order."""
+    out, count = np.full(len(group), -1, np.int64), 0
+    for g in np.unique(group[group >= 0]):
+        sel = np.flatnonzero(group == g)
+        part = split_touching(xyz[sel])
+        sizes = np.bincount(part)
+        keep = np.flatnonzero(sizes >= MIN_POINTS)
+        remap = np.full(len(sizes), -1)
+        remap[keep] = np.arange(count, count + len(keep))
+        out[sel] = remap[part]
+        count += len(keep)
+    return out
+
+
 def find_instances(xyz: np.ndarray, structure: Structure, split: bool = True) -> np.ndarray:
     """``[N]`` instance ids of a levelled room (−1: none): :func:`find_components` of the
-    points that are not structure, each split where objects touch (:func:`split_touching`,
-    unless ``split`` is False), then the wall points an object stands against given back
-    to it (inside its box grown by 4 cm and within 15 cm of its points: the back of a cabinet or a
-    bookshelf, which lies in the wall's plane)."""
+    points that are not structure, each split where objects touch (:func:`split_groups`,
+    unless ``split`` is False), then the wall points an object stands against given back to
+    it (inside its box grown by 4 cm and within 15 cm of its points: the back of a cabinet or
+    a bookshelf, which lies in the wall's plane)."""
     from scipy.spatial import cKDTree
 
     xyz = np.asarray(xyz, np.float64)
     instance = find_components(xyz, (structure.label == 0) & (xyz[:, 2] > FLOOR_BAND))
     if split:  # objects that touch, told apart from above
-        out, count = np.full_like(instance, -1), 0
-        for i in range(int(instance.max()) + 1):
-            sel = np.flatnonzero(instance == i)
-            part = split_touching(xyz[sel])
-            sizes = np.bincount(part)
-            part = np.where(sizes[part] >= MIN_POINTS, part, -1)
-            keep = np.unique(part[part >= 0])
-            remap = np.full(len(sizes), -1)
-            remap[keep] = np.arange(count, count + len(keep))
-            out[sel] = np.where(part >= 0, remap[np.maximum(part, 0)], -1)
-            count += len(keep)
-        instance = out
+        instance = split_groups(xyz, instance)
     wall = np.flatnonzero(structure.label == WALL)
     mine = np.flatnonzero(instance >= 0)
     if not len(wall) or not len(mine):
@@ -215,7 +224,6 @@ def find_instances(xyz: np.ndarray, structure: Structure, split: bool = True) ->
     np.maximum.at(hi, instance[mine], xyz[mine])
     inside = np.all((xyz[cand] >= lo[owner] - 0.04) & (xyz[cand] <= hi[owner] + 0.04), axis=1)
     instance[cand[inside]] = owner[inside]
-    structure.label[cand[inside]] = 0
     return instance
 
 
@@ -386,6 +394,35 @@ def support_surfaces(xyz: np.ndarray, normal: np.ndarray) -> dict:
     return out
 
 
+@dataclasses.dataclass(frozen=True)
+class Discovery:
+    """What :func:`discover` finds in a levelled room: estimated ``normal [N, 3]``, the
+    :class:`Structure`, ``instance [N]`` ids (−1: none), each instance's point indices
+    (``groups``) and its descriptors (``features [K, F]``, :func:`object_features`)."""
+
+    normal: np.ndarray
+    structure: Structure
+    instance: np.ndarray
+    groups: tuple
+    features: np.ndarray
+
+
+def discover(xyz: np.ndarray, seed: int = 0) -> Discovery:
+    """Structure, instances and their descriptors of a levelled room ``xyz [N, 3]``: the
+    unnamed half of object discovery, shared by :func:`segment_scene` and the classifier's
+    training data (:mod:`jaxmotion.data.object_features`)."""
+    from jaxmotion.scene.level import estimate_normals
+
+    xyz = np.asarray(xyz, np.float64)
+    normal = estimate_normals(xyz)
+    structure = find_structure(xyz, seed)
+    instance = find_instances(xyz, structure)
+    groups = tuple(np.flatnonzero(instance == i) for i in range(int(instance.max()) + 1))
+    feats = np.stack([object_features(xyz[g], normal[g], structure.walls, structure.top)
+                      for g in groups]) if groups else np.zeros((0, NUM_FEATURES), np.float32)
+    return Discovery(normal, structure, instance, groups, feats)
+
+
 def segment_scene(scene, *, seed: int = 0, classifier=None):
     """``scene`` (levelled) with discovered labels and object table, and notes for the user.
 
@@ -397,19 +434,15 @@ def segment_scene(scene, *, seed: int = 0, classifier=None):
         (:func:`jaxmotion.models.object_classifier.load_object_classifier`).
     Returns ``(scene, notes)``.
     """
-    from jaxmotion.scene.level import estimate_normals
     from jaxmotion.scene.objects import category_ids
 
     xyz = np.asarray(scene.xyz, np.float64)
     if scene.num_points < 50:
         return scene, ("the room has too few points to find objects in",)
-    normal = estimate_normals(xyz)
-    structure = find_structure(xyz, seed)
-    instance = find_instances(xyz, structure)
-    count = int(instance.max()) + 1
-    feats = np.stack([object_features(xyz[instance == i], normal[instance == i],
-                                      structure.walls, structure.top) for i in range(count)]) \
-        if count else np.zeros((0, NUM_FEATURES), np.float32)
+    found = discover(xyz, seed)
+    normal, structure, instance, feats = (found.normal, found.structure, found.instance,
+                                          found.features)
+    count = len(found.groups)
     if classifier is None:
         from jaxmotion.models.object_classifier import load_object_classifier
 
@@ -418,8 +451,7 @@ def segment_scene(scene, *, seed: int = 0, classifier=None):
     ids = category_ids()
     semantic = np.where(structure.label > 0, structure.label, -1).astype(np.int64)
     objects, named = [], 0
-    for i in range(count):
-        sel = instance == i
+    for i, sel in enumerate(found.groups):
         best = int(np.argmax(probs[i]))
         conf = float(probs[i, best])
         cat = classifier.categories[best]
@@ -433,7 +465,7 @@ def segment_scene(scene, *, seed: int = 0, classifier=None):
         pts = xyz[sel]
         obj = {"id": i, "category": cat, "bbox_min": pts.min(0).tolist(),
                "bbox_max": pts.max(0).tolist(), "confidence": round(conf, 3),
-               "points": int(sel.sum()), "source": "segment",
+               "points": len(sel), "source": "segment",
                **support_surfaces(pts, normal[sel])}
         objects.append(obj)
     notes = (f"objects found in the unlabelled room: {count} ({named} named by the shape "

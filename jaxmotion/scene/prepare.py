@@ -12,9 +12,9 @@ the file again or derives its own table::
                 object discovery (:func:`jaxmotion.scene.segment.segment_scene`)
 
 The labelled room is cached per file (its content, the options, the segmentation's version
-and the classifier's weights: ``$JAXMOTION_CACHE/rooms/``, ``JAXMOTION_CACHE=off`` for none), so a second run on
-the same file does not segment it again. Notes say what was done (unit, turn, floor shift,
-objects found).
+and the classifier's weights: ``$JAXMOTION_CACHE/rooms/``, ``JAXMOTION_CACHE=off`` for none),
+so a second run on the same file does not segment it again. Notes say what was done (unit,
+turn, floor shift, objects found).
 """
 
 from __future__ import annotations
@@ -60,27 +60,21 @@ def instances_from_classes(scene):
     """``scene`` with instance ids and its object table for per-point classes without them:
     each class's points (structure and unknown aside) split into connected groups and where
     objects touch (:func:`jaxmotion.scene.segment.find_components`, :func:`~jaxmotion.scene.
-    segment.split_touching`)."""
+    segment.split_groups`)."""
     from jaxmotion.constants import STRUCTURE
     from jaxmotion.scene.objects import category_names
-    from jaxmotion.scene.segment import FLOOR_BAND, MIN_POINTS, find_components, split_touching
+    from jaxmotion.scene.segment import FLOOR_BAND, find_components, split_groups
 
     names = category_names()
     xyz = np.asarray(scene.xyz, np.float64)
-    instance = np.full(scene.num_points, -1, np.int64)
-    count = 0
+    group, offset = np.full(scene.num_points, -1, np.int64), 0
     for cls in np.unique(scene.semantic[scene.semantic >= 0]):
         if names.get(int(cls)) in STRUCTURE:
             continue
-        mask = (scene.semantic == cls) & (xyz[:, 2] > FLOOR_BAND)
-        comp = find_components(xyz, mask)
-        for i in range(int(comp.max()) + 1):
-            sel = np.flatnonzero(comp == i)
-            part = split_touching(xyz[sel])
-            for p in np.unique(part):
-                if (part == p).sum() >= MIN_POINTS:
-                    instance[sel[part == p]] = count
-                    count += 1
+        comp = find_components(xyz, (scene.semantic == cls) & (xyz[:, 2] > FLOOR_BAND))
+        group[comp >= 0] = comp[comp >= 0] + offset
+        offset += int(comp.max()) + 1
+    instance = split_groups(xyz, group)
     return dataclasses.replace(scene, instance=instance, objects=())  # table derived on build
 
 
@@ -93,39 +87,36 @@ def _digest(path: Path, options: dict) -> str:
 
 
 def _cached(path: Path, options: dict):
+    """``(key, PreparedRoom or None)``: the cache entry of ``path`` (a scene ``.npz`` written
+    by :func:`~jaxmotion.scene.save_scene` and a ``.json`` beside it with the notes, written
+    last), and the room it holds when both are there and readable."""
     root = room_cache_dir()
     if root is None:
         return None, None
     key = root / f"{_digest(path, options)}.npz"
-    if key.is_file():
+    try:
+        extra = json.loads(key.with_suffix(".json").read_text())
         from jaxmotion.scene.io import load_scene
 
-        try:
-            with np.load(key, allow_pickle=False) as z:
-                extra = json.loads(str(z["prepared"])) if "prepared" in z.files else None
-            if extra is not None:
-                return key, PreparedRoom(load_scene(key), tuple(extra["notes"]),
-                                         extra["labels"], cached=True)
-        except (OSError, ValueError, KeyError, SceneError):
-            pass  # a damaged entry is made again
-    return key, None
+        return key, PreparedRoom(load_scene(key), tuple(extra["notes"]), extra["labels"],
+                                 cached=True)
+    except (OSError, ValueError, KeyError, TypeError, SceneError):
+        return key, None  # absent or damaged: made (again)
 
 
 def _store(key: Path | None, room: PreparedRoom) -> None:
     if key is None:
         return
     from jaxmotion._atomic import atomic_open
+    from jaxmotion.scene.io import save_scene
 
-    s = room.scene
     try:
         key.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_open(key, "wb") as f:
-            np.savez(f, xyz=s.xyz, rgb=s.rgb, normal=s.normal, semantic=s.semantic,
-                     instance=s.instance, objects=np.array(json.dumps(list(s.objects))),
-                     name=np.array(s.name), prepared=np.array(json.dumps(
-                         {"notes": list(room.notes), "labels": room.labels})))
-    except OSError:
-        pass  # a read-only cache: segmented again next time
+        save_scene(room.scene, key)
+        with atomic_open(key.with_suffix(".json"), "w") as f:
+            json.dump({"notes": list(room.notes), "labels": room.labels}, f)
+    except (OSError, SceneError):
+        pass  # a read-only cache: prepared again next time
 
 
 def _label(scene, notes: tuple, *, segment: bool, seed: int):
@@ -191,7 +182,7 @@ def prepare_room(source, *, num_points: int | None = None, up: str = "auto",
         scene, notes = load_scene_and_notes(path, num_points=num_points, seed=seed, up=up)
     scene, notes, labels = _label(scene, tuple(notes), segment=segment, seed=seed)
     room = PreparedRoom(scene, notes, labels)
-    if cache and labels in ("segment", "classes") or (cache and plain and notes):
+    if labels in ("segment", "classes") or (plain and notes):  # work worth keeping
         _store(key, room)
     return room
 

@@ -29,6 +29,7 @@ from jaxmotion.grounding.phrasing import (
     canonical_category,
     preferred_seats,
     read_phrasing,
+    takes,
     tokenize,
 )
 
@@ -275,9 +276,7 @@ def ground_candidates(room, text, grounding: str = "auto") -> Candidates:
         found, how = _seat_at(found, how, action, r, by_class, objects, notes, warns, grounding)
     classes = action_classes(action)
     if classes is not None and found and not r.seat_at:
-        odd = sorted({o["category"] for o in found
-                      if canonical_category(o["category"]) not in classes
-                      and action not in o.get("affords", ())})
+        odd = sorted({o["category"] for o in found if not takes(action, o)})
         if odd:
             warns.append(f"jaxmotion's models {_VERB[action]} {_plural(action)}; "
                          f"{' and '.join(odd)} is not one: the motion is for it as asked, "
@@ -310,8 +309,7 @@ def _takers(action, classes, by_class, objects) -> list[dict]:
     whose surface affords it (``affords``: an unnamed seat or bed found by segmentation,
     :mod:`jaxmotion.scene.segment`)."""
     found = [o for c in classes for o in by_class.get(c, ())]
-    verb = "sit" if action == "stand_up" else action
-    return found or [o for o in objects if verb in o.get("affords", ())]
+    return found or [o for o in objects if takes(action, o)]
 
 
 def _instead(target, action, r, by_class, warns, objects):

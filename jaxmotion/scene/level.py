@@ -40,7 +40,7 @@ MAX_ROOM = 60.0  # m: the largest room side read as metres
 MAX_STOREY = 6.0  # m: a smallest side above this (and under 20) is feet, not metres
 TILT_TOLERANCE = np.deg2rad(1.0)  # a floor tilted less than this is left as it is
 FLOOR_TOLERANCE = 0.02  # m: a floor this close to z = 0 is not moved
-#: unit name -> metres per unit, in the order they are tried for a scene too large for metres
+#: unit name -> metres per unit (``--unit``; :func:`detect_unit` tries feet, then cm, then mm)
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "ft": 0.3048, "in": 0.0254}
 _PLANE_TOL = 0.03  # m: inlier distance of a floor plane
 _AXIS_COS = np.cos(np.deg2rad(25.0))  # a candidate floor is within 25 degrees of an axis
@@ -65,10 +65,10 @@ def detect_unit(xyz: np.ndarray, unit: str = "auto") -> tuple[float, str | None]
     if big <= MAX_ROOM and small <= 20.0:
         return UNITS["ft"], (f"the room is {big:.1f} x {small:.1f} units: read as feet "
                              "(scaled by 0.3048); pass --unit m if it really is metres")
-    fits = [n for n in ("cm", "mm") if big * UNITS[n] <= MAX_ROOM]
-    name = next((n for n in fits if small * UNITS[n] <= MAX_STOREY), fits[0] if fits else None)
     if big <= MAX_ROOM:  # a tall hall in metres
         return 1.0, None
+    fits = [n for n in ("cm", "mm") if big * UNITS[n] <= MAX_ROOM]
+    name = next((n for n in fits if small * UNITS[n] <= MAX_STOREY), fits[0] if fits else None)
     if name is None:
         raise SceneError(f"the scene is {big:.3g} units across: no unit (m, cm, mm) makes it "
                          f"a room of at most {MAX_ROOM:.0f} m; crop it to one room or give "
@@ -117,7 +117,8 @@ def _plane(pts: np.ndarray, axis_dir: np.ndarray, rng) -> tuple[np.ndarray, floa
     25 degrees of ``axis_dir`` and facing it: ``(normal, offset, inlier mask)``, refined by a
     least-squares fit of its inliers."""
     if len(pts) < 3:
-        return axis_dir, float(pts @ axis_dir).min() if len(pts) else 0.0, np.zeros(len(pts), bool)
+        return (axis_dir, float((pts @ axis_dir).min()) if len(pts) else 0.0,
+                np.zeros(len(pts), bool))
     tri = pts[rng.integers(0, len(pts), (_TRIALS, 3))]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     norm = np.linalg.norm(n, axis=1)
@@ -143,23 +144,31 @@ def _plane(pts: np.ndarray, axis_dir: np.ndarray, rng) -> tuple[np.ndarray, floa
     return normal, offset, np.abs(pts @ normal - offset) <= _PLANE_TOL
 
 
+def _sample(xyz: np.ndarray, seed: int):
+    """``(rng, points)``: the seeded generator and the subsample the planes are found on."""
+    rng = np.random.default_rng(seed)
+    return rng, xyz[rng.choice(len(xyz), min(len(xyz), _SAMPLE), replace=False)]
+
+
+def _end_plane(pts: np.ndarray, axis: int, sign: int, rng) -> tuple[np.ndarray, float, float]:
+    """``(normal, offset, share of pts)`` of the largest plane facing ``sign`` along ``axis``
+    in the slab at that end of ``pts`` (deep enough for a tilted floor)."""
+    u = sign * pts[:, axis]
+    span = float(np.percentile(u, 99) - np.percentile(u, 1))
+    band = u <= np.percentile(u, 1) + max(0.3, 0.1 * span)
+    normal, offset, inl = _plane(pts[band], np.eye(3)[axis] * sign, rng)
+    return normal, offset, inl.sum() / len(pts)
+
+
 def find_floor(xyz: np.ndarray, prior: int = 2, seed: int = 0) -> Floor | None:
     """The floor plane of ``xyz [N, 3]`` (metres) along any file axis (module docstring, step
     2); ``prior`` is the file convention's up axis (0, 1, 2). None for fewer than 50 points."""
     xyz = np.asarray(xyz, np.float64)
     if len(xyz) < 50:
         return None
-    rng = np.random.default_rng(seed)
-    pts = xyz[rng.choice(len(xyz), min(len(xyz), _SAMPLE), replace=False)]
-    found = {}
-    for axis in range(3):
-        for sign in (1, -1):
-            u = sign * pts[:, axis]
-            span = float(np.percentile(u, 99) - np.percentile(u, 1))
-            band = u <= np.percentile(u, 1) + max(0.3, 0.1 * span)  # the end's slab, tilt room
-            direction = np.eye(3)[axis] * sign
-            normal, offset, inl = _plane(pts[band], direction, rng)
-            found[axis, sign] = (normal, offset, inl.sum() / len(pts))
+    rng, pts = _sample(xyz, seed)
+    found = {(axis, sign): _end_plane(pts, axis, sign, rng)
+             for axis in range(3) for sign in (1, -1)}
     # a room is lower than it is wide: the shortest side of its box is the up axis unless
     # another axis has a far larger floor; the file's convention breaks near ties
     ext = np.percentile(pts, 99, axis=0) - np.percentile(pts, 1, axis=0)
@@ -235,7 +244,8 @@ def level_scene(scene, *, up: str = "auto", prior: str = "z", unit: str = "auto"
         coarse, fine = AXIS_TO_Z[axis, 1], np.eye(3)
         z0 = float(np.percentile((xyz @ coarse.T)[:, 2], 1))
         notes.append("no floor plane found (fewer than 2 % of the points lie on one): the "
-                     f"{'given' if told is not None else 'file convention'}'s up axis is kept")
+                     f"{'given' if told is not None else 'file format convention'} up axis is "
+                     "kept")
     else:
         coarse = AXIS_TO_Z[floor.axis, floor.sign]
         normal = coarse @ floor.normal
@@ -250,8 +260,6 @@ def level_scene(scene, *, up: str = "auto", prior: str = "z", unit: str = "auto"
             notes.append(f"up axis found from the floor: the file is {named}-up, not "
                          f"{'y' if prior == 'y' else 'z'}-up as its format's convention has it: "
                          f"{turned} ({floor.inliers:.0%} of the points on the floor)")
-        elif told is not None and (floor.axis, floor.sign) != (told, 1):
-            notes.append(f"the floor was found facing {_AXIS_NAMES[floor.axis, floor.sign]}")
         if tilt > TILT_TOLERANCE:
             notes.append(f"the floor was tilted by {np.rad2deg(tilt):.1f} degrees: levelled")
     rot = fine @ coarse
@@ -267,12 +275,9 @@ def level_scene(scene, *, up: str = "auto", prior: str = "z", unit: str = "auto"
 
 def _along(xyz: np.ndarray, axis: int, seed: int) -> Floor | None:
     """The floor along a told axis (+axis up): the largest plane at its low end."""
-    rng = np.random.default_rng(seed)
-    pts = xyz[rng.choice(len(xyz), min(len(xyz), _SAMPLE), replace=False)]
-    u = pts[:, axis]
-    band = u <= np.percentile(u, 1) + max(0.3, 0.1 * float(np.ptp(u)))
-    normal, offset, inl = _plane(pts[band], np.eye(3)[axis], rng)
-    return Floor(normal, offset, inl.sum() / len(pts), axis, 1)
+    rng, pts = _sample(xyz, seed)
+    normal, offset, share = _end_plane(pts, axis, 1, rng)
+    return Floor(normal, offset, share, axis, 1)
 
 
 def _scaled(scene, scale: float):

@@ -155,12 +155,11 @@ def check_outputs(scene=None, ids=(), *, out=None, video: str | None = "mp4", fi
         raise GenerateError(f"bvh_sample {sample!r} is not one of the {samples} samples "
                             f"(0..{samples - 1})")
     wanted = sorted({int(i) for i in ids if i is not None and int(i) >= 0})
-    if wanted:
-        table = {int(o["id"]) for o in (scene.objects if scene is not None else ())}
-        if missing := [i for i in wanted if i not in table]:
-            listed = ", ".join(f"{o['id']} ({o['category']})" for o in scene.objects) or "none"
-            raise GenerateError(f"object {', '.join(map(str, missing))} is not in the scene's "
-                                f"object table (its objects: {listed}); see jaxmotion scene info")
+    objects = scene.objects if scene is not None else ()
+    if missing := [i for i in wanted if i not in {int(o["id"]) for o in objects}]:
+        listed = ", ".join(f"{o['id']} ({o['category']})" for o in objects) or "none"
+        raise GenerateError(f"object {', '.join(map(str, missing))} is not in the scene's "
+                            f"object table (its objects: {listed}); see jaxmotion scene info")
     return None if out is None else check_output_folder(out)
 
 

@@ -525,11 +525,10 @@ def story_generation(scene, plan, opts, progress: bool = False, text: str | None
     and ``object_checkpoints``."""
     import time
 
+    from jaxmotion.export.folder import check_outputs
     from jaxmotion.scene.demo import room_for
 
     t0 = time.perf_counter()
-    from jaxmotion.export.folder import check_outputs
-
     room = room_for(scene, opts)
     steps = read_plan(plan, room)
     check_outputs(room, [s.object for s in steps], video=None)  # as saving will, before sampling

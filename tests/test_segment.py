@@ -235,6 +235,8 @@ def test_an_unnamed_surface_that_affords_sitting_is_a_seat():
     assert [o["id"] for o in ground_candidates(room, "sit down").objects] == [0]
     assert [o["id"] for o in ground_candidates(room, "sit on the couch").objects] == [0]
     assert ground_candidates(room, "lie down").error
+    up = ground_candidates(room, "stand up")  # it takes a stand-up too, with no "not one" warning
+    assert [o["id"] for o in up.objects] == [0] and not any("is not one" in w for w in up.warnings)
     assert read_plan([{"action": "sit", "object": 0}], room)[0].object == 0
 
 

@@ -138,6 +138,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     from jaxmotion.grounding.region import centre_on_object
     from jaxmotion.pipelines.checkpoints import adm_text_tokens, pick_pipeline
     from jaxmotion.pipelines.object_centric import prefetch_sampler
+    from jaxmotion.progress import report
     from jaxmotion.scene.checks import check_room, scene_warnings
     from jaxmotion.scene.demo import room_for
     from jaxmotion.text.condition import blank_condition, embed_one
@@ -145,8 +146,11 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     times: dict[str, float] = {}
     t0 = [time.perf_counter()]
 
+    shares = {"load": 0.1, "adm": 0.3, "region": 0.2, "sample": 0.85, "fit": 0.95}
+
     def lap(name):
         times[name], t0[0] = (now := time.perf_counter()) - t0[0], now
+        report(f"{name} done", shares.get(name))
         if progress:
             print(f"  {name:<10} {times[name]:6.2f} s", file=sys.stderr, flush=True)
 
@@ -200,6 +204,7 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     understood = explain(room, instruction, chosen, how, opts, echo=progress)  # warns, too
     check_outputs(room, [chosen], video=None)  # what saving would refuse, refused before sampling
     after_loads = when_loaded(meanwhile)  # the CLI's renderer: beside the sampling
+    report(f"sampling {k} motion{'s' if k > 1 else ''}", 0.3)
     pipeline = pick_pipeline(opts.pipeline, models.files, chosen)  # needs a target or not
     if pipeline == "cvae":  # the HUMANISE baseline on the square around the target
         from jaxmotion.pipelines import cvae

@@ -15,6 +15,9 @@ makes the motion with the object-centric models, step after step, each starting 
   :data:`~jaxmotion.planning.paths.SIT_REACH` of it (in front of it when the object has a
   ``front``), where the models' own walk-in-and-sit takes over: close, so that the model's
   path (which sees obstacles only through 0.5 m voxels) has little room to cross furniture.
+- **walk** to a point ``(x, y)`` of the floor (a step ``{"action": "walk", "point": [x, y]}``,
+  ``object`` −1): the same, ending at the free place nearest the point; a story that starts
+  with one starts standing at a free place :data:`POINT_START` from it, drawn with the seed.
 - **walk** to X: a path on the scene's points (:mod:`jaxmotion.planning.paths`) from where the
   person stands to the nearest free place within reach of X, timed by a human speed profile
   and turned to face X at the end (:mod:`jaxmotion.planning.trajectory`); the completion model
@@ -27,6 +30,7 @@ Everything is in the scene's frame (z-up, metres, 30 fps); the same seed gives t
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import json
 from pathlib import Path
@@ -55,6 +59,10 @@ CANDIDATES = 4
 #: A sit or lie farther than this (m, pelvis to the nearest point of the object) walks first,
 #: to a place :data:`~jaxmotion.planning.paths.SIT_REACH` from it.
 NEAR = 1.2
+#: How far (m, straight line) from its point a story that starts by walking to a point starts.
+POINT_START = (1.5, 3.5)
+#: How far (m) from a walk's point the free place it ends at may be.
+POINT_REACH = 0.5
 ACTIONS = ("walk", "sit", "stand_up", "lie")
 _STAND_UP = 2  # its index in jaxmotion.models.object_centric.ACTION_CLASSES
 _TAKES = {"sit": SEAT_CATEGORIES, "stand_up": SEAT_CATEGORIES, "lie": LIE_CATEGORIES}
@@ -64,10 +72,12 @@ _TEXT = {"walk": "walk to the {}", "sit": "sit on the {}", "stand_up": "stand up
 
 @dataclasses.dataclass(frozen=True)
 class Step:
-    """One step of a plan: ``action`` (walk / sit / stand_up / lie) on object ``object``."""
+    """One step of a plan: ``action`` (walk / sit / stand_up / lie) on object ``object``;
+    or a walk to ``point`` (x, y on the floor, scene frame), with ``object`` −1."""
 
     action: str
     object: int
+    point: tuple[float, float] | None = None
 
 
 @dataclasses.dataclass
@@ -90,8 +100,9 @@ class Story:
 
 
 def read_plan(plan, scene) -> tuple[Step, ...]:
-    """The steps of ``plan`` (a list of ``{"action", "object"}`` dicts or :class:`Step`, or a
-    JSON file holding that list), checked against ``scene``'s objects; :class:`GenerateError`
+    """The steps of ``plan`` (a list of ``{"action", "object"}`` or ``{"action": "walk",
+    "point": [x, y]}`` dicts or :class:`Step`, or a JSON file holding that list), checked
+    against ``scene``'s objects and bounds; :class:`GenerateError`
     naming the bad step and the fix. A step after a sit or lie that is not the stand-up from
     it gets that stand-up inserted before it (the returned steps include it)."""
     from jaxmotion.grounding.objects import object_table
@@ -106,19 +117,25 @@ def read_plan(plan, scene) -> tuple[Step, ...]:
         raise GenerateError('a plan is a non-empty list of steps such as {"action": "sit", '
                             '"object": 3}')
     objects = {int(o["id"]): o for o in object_table(scene)}
-    if not objects:
-        raise GenerateError("the scene has no objects (no per-point instance labels): a plan "
-                            "names objects by id")
     steps = []
     for i, raw in enumerate(plan, 1):
         step = raw if isinstance(raw, Step) else None
         if step is None:
-            if not isinstance(raw, dict) or set(raw) != {"action", "object"}:
-                raise GenerateError(f'step {i}: {raw!r} is not {{"action": ..., "object": id}}')
-            step = Step(str(raw["action"]), raw["object"])
+            if not isinstance(raw, dict) or set(raw) not in ({"action", "object"},
+                                                             {"action", "point"}):
+                raise GenerateError(f'step {i}: {raw!r} is not {{"action": ..., "object": id}} '
+                                    'or {"action": "walk", "point": [x, y]}')
+            step = (Step(str(raw["action"]), raw["object"]) if "object" in raw else
+                    Step(str(raw["action"]), -1, raw["point"]))
         if step.action not in ACTIONS:
             raise GenerateError(f"step {i}: unknown action {step.action!r}; valid: "
                                 f"{', '.join(ACTIONS)}")
+        if step.point is not None:
+            steps.append(Step(step.action, -1, _check_point(i, step, scene)))
+            continue
+        if not objects:
+            raise GenerateError("the scene has no objects (no per-point instance labels): a plan "
+                                "names objects by id, or walks to points of the floor")
         try:
             oid = int(step.object)
         except (TypeError, ValueError):
@@ -142,6 +159,27 @@ def read_plan(plan, scene) -> tuple[Step, ...]:
             out.append(Step("stand_up", a.object))
         out.append(b)
     return tuple(out)
+
+
+def _check_point(i: int, step: Step, scene) -> tuple[float, float]:
+    """A walk step's point as ``(x, y)`` floats, checked: a walk, two finite numbers, inside
+    the room's points' box (:class:`GenerateError` naming the fix)."""
+    if step.action != "walk":
+        raise GenerateError(f"step {i}: a point of the floor can only be walked to; "
+                            f"{step.action.replace('_', ' ')} takes an object id")
+    try:
+        xy = np.asarray(step.point, np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        xy = np.zeros(0)
+    if xy.shape != (2,) or not np.all(np.isfinite(xy)):
+        raise GenerateError(f"step {i}: point {step.point!r} is not [x, y] (two numbers, metres, "
+                            "scene frame)")
+    lo, hi = scene.xyz[:, :2].min(0), scene.xyz[:, :2].max(0)
+    if np.any(xy < lo) or np.any(xy > hi):
+        raise GenerateError(f"step {i}: point ({xy[0]:.2f}, {xy[1]:.2f}) is outside the room "
+                            f"(x {lo[0]:.2f}..{hi[0]:.2f}, y {lo[1]:.2f}..{hi[1]:.2f}); give it in "
+                            "the scene's frame, metres")
+    return float(xy[0]), float(xy[1])
 
 
 def _rot6(m):
@@ -187,6 +225,50 @@ def choose(joints, points, target, others, anchor_first):
                          jnp.ones((1, joints.shape[1]), bool), jnp.asarray(anchor_first)[None],
                          brisk_pelvis_speed=BRISK_PELVIS_SPEED, avoid=others[None],
                          feet=True, return_index=True)[0]
+
+
+def _point_goal(grid, point, start):
+    """Where a walk from ``start`` (xy) to ``point`` (xy) ends: the point itself when it is
+    free floor that a walk from ``start`` reaches, else the nearest such place (within
+    :data:`POINT_REACH`)."""
+    from jaxmotion.motion.planner import PlanningError
+    from jaxmotion.planning.paths import approach_point
+
+    for reach in (0.05, 0.2, POINT_REACH):
+        try:
+            return approach_point(grid, np.asarray(point, float)[None], start, reach=(0.0, reach))
+        except PlanningError:
+            if reach == POINT_REACH:
+                raise
+
+
+def point_start(grid, goal, seed: int) -> np.ndarray:
+    """Where a story that starts by walking to ``goal`` (xy) starts: a free place (clearance
+    :data:`~jaxmotion.planning.paths.WALK_RADIUS`) from which ``goal`` can be walked to,
+    :data:`POINT_START` from it in a straight line (the farthest such place nearer than that
+    when none is), drawn with ``seed``."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from jaxmotion.motion.planner import PlanningError
+    from jaxmotion.planning.paths import WALK_RADIUS, free_graph
+
+    free = grid.clearance >= WALK_RADIUS
+    graph, cell_of = free_graph(free)
+    g = tuple(int(v) for v in grid.index(np.asarray(goal, float)[None])[0])
+    if not free[g]:
+        ij = np.argwhere(free)
+        if not len(ij):
+            raise PlanningError("the room has no free floor to walk on")
+        g = tuple(ij[np.argmin(np.linalg.norm(ij - np.array(g), axis=1))])
+    reach = np.isfinite(dijkstra(graph, indices=cell_of[g]))
+    cells = np.argwhere(free)[reach]
+    xy = grid.centers(cells)
+    d = np.linalg.norm(xy - np.asarray(goal, float), axis=1)
+    ok = np.flatnonzero((d >= POINT_START[0]) & (d <= POINT_START[1]))
+    if not len(ok):
+        ok = np.flatnonzero(d <= POINT_START[1])
+        ok = ok[d[ok] >= d[ok].max() - 0.05]
+    return xy[np.random.default_rng([int(seed), 11]).choice(ok)]
 
 
 def _goal(grid, scene, obj, start, action):
@@ -246,48 +328,57 @@ def _heading(six) -> float:
     return float(np.arctan2(fwd[1], fwd[0]))
 
 
+@functools.lru_cache(maxsize=4)
+def _programs(files: tuple[str, str], sampler):
+    """The object-centric pipeline of ``files`` and the jitted programs a :class:`Teller`
+    runs (best-of-m window samplers, the completion along a path), kept for the process:
+    a warm process (the studio) tells its next story without tracing them again."""
+    from jaxmotion.data.crop import crop_spec_from_config
+    from jaxmotion.models.weights import read_config
+    from jaxmotion.pipelines.object_centric import load_object_pipeline
+
+    pipe = load_object_pipeline(*files)
+    cfg = read_config(files[1])
+    spec, t = crop_spec_from_config(cfg), int(cfg["max_frames"])
+    betas = jnp.zeros(10, jnp.float32)
+
+    def sampler_of(m):  # best of m motions
+        def sample(k, p, n, tgt, others, e, a, pre, pf):
+            def one(key):
+                out = pipe.sample_one(key, p, n, tgt, e, betas, jnp.ones(t, bool),
+                                      trajectory_spec=sampler, completion_spec=sampler,
+                                      action=a, prefix=pre, prefix_frames=pf)
+                return out["motion"], out["joints"]
+
+            motions, joints = jax.vmap(one)(jax.random.split(k, m))
+            return motions[choose(joints, p, tgt, others, a == _STAND_UP)]
+
+        return jax.jit(sample)
+
+    def complete(k, p, n, tgt, e, a, traj, mask, pre, pf):
+        return pipe.complete_one(k, p, n, tgt, e, betas, traj, mask, spec=sampler,
+                                 action=a, prefix=pre, prefix_frames=pf)["motion"]
+
+    return pipe, spec, t, {1: sampler_of(1), CANDIDATES: sampler_of(CANDIDATES)}, \
+        jax.jit(complete)
+
+
 class Teller:
     """The state of one story being told (models, compiled steps, the motion so far): the
     steps of :func:`tell` and the trajectory control of :mod:`jaxmotion.planning.control`."""
 
     def __init__(self, scene, files, seed, steps_spec):
-        from jaxmotion.data.crop import crop_spec_from_config
         from jaxmotion.diffusion.anchor_guidance import standing_height
-        from jaxmotion.models.weights import read_config
-        from jaxmotion.pipelines.object_centric import load_object_pipeline
 
         self.scene, self.seed = scene, int(seed)
         self.stand = float(standing_height(None))  # the neutral body's standing pelvis height
-        self.pipe = load_object_pipeline(str(files[0]), str(files[1]))
-        cfg = read_config(files[1])
-        self.spec, self.frames = crop_spec_from_config(cfg), int(cfg["max_frames"])
+        self.pipe, self.spec, self.frames, self._sample, self._complete = _programs(
+            tuple(str(f) for f in files), steps_spec)
         self.key = jax.random.key(self.seed)
         self.windows = 0
         self.motion = None  # [T, 135] scene frame
         self.segments, self.paths = [], []
         self.betas = jnp.zeros(10, jnp.float32)
-        pipe, sampler = self.pipe, steps_spec
-        t = self.frames
-
-        def sampler_of(m):  # best of m motions
-            def sample(k, p, n, tgt, others, e, a, pre, pf):
-                def one(key):
-                    out = pipe.sample_one(key, p, n, tgt, e, self.betas, jnp.ones(t, bool),
-                                          trajectory_spec=sampler, completion_spec=sampler,
-                                          action=a, prefix=pre, prefix_frames=pf)
-                    return out["motion"], out["joints"]
-
-                motions, joints = jax.vmap(one)(jax.random.split(k, m))
-                return motions[choose(joints, p, tgt, others, a == _STAND_UP)]
-
-            return jax.jit(sample)
-
-        def complete(k, p, n, tgt, e, a, traj, mask, pre, pf):
-            return pipe.complete_one(k, p, n, tgt, e, self.betas, traj, mask, spec=sampler,
-                                     action=a, prefix=pre, prefix_frames=pf)["motion"]
-
-        self._sample = {1: sampler_of(1), CANDIDATES: sampler_of(CANDIDATES)}
-        self._complete = jax.jit(complete)
         self._emb = {}
 
     def text(self, action, obj) -> np.ndarray:
@@ -382,14 +473,51 @@ class Teller:
         """A planned path to the object (:func:`_goal` of ``action``, the step it walks for),
         the body written along it window by window."""
         from jaxmotion.planning.paths import scene_path
-        from jaxmotion.planning.trajectory import path_trajectory
 
         here = self.motion[-1]
         path = scene_path(grid, here[:2], _goal(grid, self.scene, obj, here[:2], action))
+        centre = 0.5 * (np.asarray(obj["bbox_min"][:2]) + np.asarray(obj["bbox_max"][:2]))
+        self._walk(path, centre, obj["id"], self.text("walk", obj))
+
+    def walk_to_point(self, point, grid):
+        """A planned path to the free place nearest ``point`` (xy), the body written along
+        it; the first step of a story starts standing at :func:`point_start`, facing the
+        way. The walk's target sensor reads the object nearest the point."""
+        from jaxmotion.planning.control import _head_for
+        from jaxmotion.planning.paths import scene_path
+        from jaxmotion.planning.trajectory import path_trajectory
+
+        point = np.asarray(point, float)
+        start = (point_start(grid, point, self.seed) if self.motion is None
+                 else self.motion[-1, :2])
+        path = scene_path(grid, start, _point_goal(grid, point, start))
+        oid = _head_for(self.scene, path[-1])
+        cats = {int(o["id"]): o["category"] for o in self.scene.objects}
+        emb = self.embed(_TEXT["walk"].format(cats[oid]) if oid >= 0 else "walk forward")
+        face = path[-1] - path[-2] if len(path) > 1 else np.array([1.0, 0.0])
+        if self.motion is not None:
+            self._walk(path, path[-1] + face, -1, emb, oid)
+            return
+        heading = float(np.arctan2(face[1], face[0]))
+        d0 = path[min(len(path) - 1, 10)] - path[0]
+        traj = path_trajectory(path, start_heading=float(np.arctan2(d0[1], d0[0])),
+                               end_heading=heading, height=self.stand)
+        self.motion = self.along(traj, 0, oid, emb)
+        self.paths.append(path)
+        self.segments.append({"action": "walk", "object": -1, "first": 0,
+                              "last": len(self.motion) - 1,
+                              "point": [float(point[0]), float(point[1])]})
+
+    def _walk(self, path, centre, oid, emb, sensor=None):
+        """The walk along ``path`` from where the motion ends, turning to face ``centre``
+        (xy) at its end; its segment names ``oid`` (−1: a point); ``sensor``: the object
+        the target sensor reads (None: ``oid``)."""
+        from jaxmotion.planning.trajectory import path_trajectory
+
+        here = self.motion[-1]
         if np.linalg.norm(path[0] - here[:2]) > 1e-3:  # off the seat first
             path = np.concatenate([here[None, :2], path])
-        centre = 0.5 * (np.asarray(obj["bbox_min"][:2]) + np.asarray(obj["bbox_max"][:2]))
-        face = float(np.arctan2(*(centre - path[-1])[::-1]))
+        face = float(np.arctan2(*(np.asarray(centre) - path[-1])[::-1]))
         traj = path_trajectory(path, start_heading=_heading(here[3:9]), end_heading=face,
                                height=float(here[2]))
         # the pelvis height eases from where it is to the standing height of the walk
@@ -397,13 +525,15 @@ class Teller:
         traj[:, 2] = here[2] + (self.stand - here[2]) * ease * ease * (3 - 2 * ease)
         lead = PREFIX + BLEND  # the previous motion's frames the walk starts over
         full = np.concatenate([self.motion[-lead:, :9], traj[1:]])  # scene frame
-        seg = self.along(full, lead, obj["id"], self.text("walk", obj))
+        seg = self.along(full, lead, oid if sensor is None else sensor, emb)
         self.paths.append(path)
         first = len(self.motion) - BLEND  # seg[PREFIX:lead]: the last motion's end, crossfaded
         self.segments[-1]["last"] = first - 1
         self.motion = np.concatenate([self.motion[:-BLEND], seg[PREFIX:]])
-        self.segments.append({"action": "walk", "object": obj["id"], "first": first,
+        self.segments.append({"action": "walk", "object": int(oid), "first": first,
                               "last": len(self.motion) - 1})
+        if oid < 0:
+            self.segments[-1]["point"] = [float(v) for v in path[-1]]
 
     def along(self, full, lead, oid, emb):
         """The body written along the root trajectory ``full [n, 9]`` (scene frame) by the
@@ -463,6 +593,7 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
     from jaxmotion.motion.representation import motion_to_joints
     from jaxmotion.pipelines.checkpoints import resolve_object_checkpoints
     from jaxmotion.planning.paths import point_grid
+    from jaxmotion.progress import report
     from jaxmotion.scene.demo import load_scene_arg
 
     scene = load_scene_arg(scene)
@@ -473,6 +604,15 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
     where = None
     for i, step in enumerate(plan, 1):
         if step.action == "stand_up":
+            continue
+        if step.point is not None:
+            try:
+                start = where if where is not None else point_start(grid, step.point, seed)
+                where = _point_goal(grid, step.point, start)
+            except PlanningError as e:
+                raise GenerateError(f"step {i} (walk to the point ({step.point[0]:.2f}, "
+                                    f"{step.point[1]:.2f})): {e}; choose a point of free floor"
+                                    ) from e
             continue
         obj = objects[step.object]
         start = where if where is not None else scene.xyz[scene.instance == obj["id"],
@@ -488,11 +628,16 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
     files = resolve_object_checkpoints(files)
     teller = Teller(scene, files, seed, SamplerSpec("ddim", steps, guidance=guidance))
     for i, step in enumerate(plan, 1):
-        obj = objects[step.object]
+        obj = objects.get(step.object)
+        said = (f"walk to ({step.point[0]:.2f}, {step.point[1]:.2f})" if step.point is not None
+                else f"{step.action.replace('_', ' ')} {obj['category']} {step.object}")
+        report(f"step {i}/{len(plan)}: {said}", (i - 1) / len(plan))
         if progress:
-            print(f"  step {i}/{len(plan)}: {step.action} {obj['category']} {step.object}",
-                  flush=True)
+            print(f"  step {i}/{len(plan)}: {said}", flush=True)
         try:
+            if step.point is not None:
+                teller.walk_to_point(step.point, grid)
+                continue
             if step.action == "walk":
                 if teller.motion is None:  # a story that starts walking: one walk clip to it
                     teller.on_object("walk", obj)
@@ -515,7 +660,8 @@ def describe(plan, scene) -> str:
     from jaxmotion.grounding.objects import object_table
 
     cats = {int(o["id"]): o["category"] for o in object_table(scene)}
-    return ", ".join(_TEXT[s.action].format(f"{cats[s.object]} {s.object}") for s in plan)
+    return ", ".join(f"walk to ({s.point[0]:.2f}, {s.point[1]:.2f})" if s.point is not None
+                     else _TEXT[s.action].format(f"{cats[s.object]} {s.object}") for s in plan)
 
 
 def story_generation(scene, plan, opts, progress: bool = False, text: str | None = None):
@@ -537,7 +683,7 @@ def story_generation(scene, plan, opts, progress: bool = False, text: str | None
     return story_result(story, room, text or describe(steps, room), opts,
                         {"story": time.perf_counter() - t0}, pipeline="story",
                         grounding="plan" if text is None else "text",
-                        target_id=steps[-1].object)
+                        target_id=steps[-1].object if steps[-1].object >= 0 else None)
 
 
 def story_result(story: Story, room, text: str, opts, timings: dict, *, pipeline: str,

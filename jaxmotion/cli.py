@@ -401,6 +401,28 @@ def _eval_descriptions(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_studio(args: argparse.Namespace) -> int:
+    from jaxmotion.studio import StudioError, serve
+
+    if not 0 < args.port < 65536:
+        raise ValueError(f"--port {args.port} is not a port number (1..65535)")
+    try:
+        import fastapi  # noqa: F401
+        import uvicorn  # noqa: F401
+    except ImportError as e:
+        raise ValueError(f"the studio needs the web packages ({e.name} is missing): "
+                         "pip install 'jaxmotion[studio]'") from None
+    options = {k: v for k, v in (("up", args.up), ("unit", args.unit), ("steps", args.steps))
+               if v is not None}
+    try:
+        serve(args.room, folder=args.folder, host=args.host, port=args.port,
+              open_browser=not args.no_open, options=options,
+              video=None if args.video == "none" else args.video)
+    except StudioError as e:
+        raise ValueError(str(e)) from None
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="jaxmotion",
@@ -748,6 +770,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frame", type=int, default=None, help="the frame of a .png (default: last)")
     p.add_argument("--points", type=int, default=None, help="points to sample from a mesh")
     p.set_defaults(func=_cmd_render)
+
+    p = sub.add_parser(
+        "studio",
+        help="a local web app: click the object, type or compose the story, watch, download",
+        description="Start one warm process serving the studio page and its JSON API (under "
+        "/api/, described at /api/docs) and open the page. Results and uploads are kept in "
+        "--folder and listed again when the studio starts there.",
+    )
+    p.add_argument("room", nargs="?", default="demo",
+                   help="the room to start with: demo (default) or a scan / mesh / cloud file")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to serve on (default 127.0.0.1: this machine only)")
+    p.add_argument("--port", type=int, default=8000, help="port (default 8000)")
+    p.add_argument("--folder", default="jaxmotion-studio",
+                   help="where uploads and results are kept (default: ./jaxmotion-studio)")
+    p.add_argument("--no-open", action="store_true", help="do not open a browser")
+    p.add_argument("--video", choices=("mp4", "gif", "none"), default="mp4",
+                   help="the video written with each result (default mp4)")
+    p.add_argument("--up", choices=("auto", "z", "y"), default=None,
+                   help="the room file's up axis (default: found from its floor)")
+    p.add_argument("--unit", choices=("auto", "m", "cm", "mm", "ft", "in"), default=None,
+                   help="the room file's length unit (default: from its size)")
+    p.add_argument("--steps", type=int, default=None, help="DDIM steps (default: the models')")
+    p.set_defaults(func=_cmd_studio)
 
     p = sub.add_parser(
         "demo",

@@ -27,6 +27,18 @@ base64 arrays and draws, with no library and no network access:
   it) and the help in a panel at the top left, the timeline and switches in a bar at the
   bottom, both on opaque backgrounds that nothing is drawn over.
 
+A page with no motion (``K = 0`` samples) shows the room alone, framed whole, without the
+timeline.
+
+Embedded in another page (an ``<iframe>``, as the studio does), the viewer talks with its
+parent by ``postMessage``: a click (a press and release that does not drag) on the room
+sends ``{"type": "jaxmotion-pick", "object": id or null, "category", "point": [x, y, z]}``
+(the nearest point under the pointer; ``object`` null for points on no object); the parent
+sends ``{"type": "jaxmotion-marks", "marks": [{"object": id or null, "point": [x, y] or
+null, "label"}], "paths": [[x, y, x, y, ...], ...]}`` to outline and label the objects and
+floor points of a plan being composed and to draw its planned paths (they replace the
+page's own).
+
 The page's URL hash sets options: ``#frame=N&body=0&cutaway=0&colour=max&play=1``.
 After each draw it sets ``window.jaxmotionViewer = {ready, frame, frames, samples,
 body}`` and the ``data-frame`` attribute of ``<html>`` so that tests and scripts can
@@ -364,7 +376,8 @@ window.jaxmotionErrors = [];
     for (let t = 0; t < T; t++) path.set(joints.subarray((s * T + t) * J * 3, ((s * T + t) * J + 1) * 3), t * 3);
     pelvisPaths.push(path);
   }
-  const planned = D.paths.map((q) => new Float32Array(q));
+  let planned = D.paths.map((q) => new Float32Array(q));
+  let marks = [];  // from the parent page: [{object index or -1, point [x, y] or null, label}]
   function boxEdges(o) {
     const c = [];
     for (let i = 0; i < 8; i++) c.push([i & 1 ? o.hi[0] : o.lo[0], i & 2 ? o.hi[1] : o.lo[1], i & 4 ? o.hi[2] : o.lo[2]]);
@@ -394,6 +407,35 @@ window.jaxmotionErrors = [];
     document.getElementById("steps").appendChild(li);
     return li;
   });
+  function setMarks(list, paths) {
+    for (const l of labels.filter((l) => l.mark)) l.el.remove();
+    for (let i = labels.length - 1; i >= 0; i--) if (labels[i].mark) labels.splice(i, 1);
+    const index = new Map(D.objects.map((o, i) => [o.id, i]));
+    marks = [];
+    for (const m of list || []) {
+      const i = m.object === null || m.object === undefined ? -1 : (index.has(m.object) ? index.get(m.object) : -1);
+      const p = Array.isArray(m.point) && m.point.length >= 2 ? [Number(m.point[0]), Number(m.point[1])] : null;
+      if (i < 0 && !p) continue;
+      marks.push({ object: i, point: p });
+      const el = document.createElement("div");
+      el.className = "label target";
+      el.textContent = String(m.label || (i >= 0 ? objectName(i) : "here"));
+      labelLayer.appendChild(el);
+      if (i >= 0) {
+        const o = D.objects[i], cx = 0.5 * (o.lo[0] + o.hi[0]), cy = 0.5 * (o.lo[1] + o.hi[1]);
+        labels.push({ el, object: i, mark: true, at: [cx, cy, o.hi[2] + 0.15], base: [cx, cy, o.lo[2]] });
+      } else {
+        labels.push({ el, object: -1, mark: true, at: [p[0], p[1], 0.45], base: [p[0], p[1], 0] });
+      }
+    }
+    if (Array.isArray(paths)) planned = paths.map((q) => new Float32Array(q.length % 2 === 0 && q.length % 3 !== 0 ?
+      q.flatMap((v, k) => (k % 2 === 1 ? [v, 0.02] : [v])) : q));
+    redraw();
+  }
+  window.addEventListener("message", (ev) => {
+    if (ev.source !== window.parent || !ev.data || ev.data.type !== "jaxmotion-marks") return;
+    setMarks(ev.data.marks, ev.data.paths);
+  });
   function stepAt(f) { return D.segments.findIndex((g) => f >= g.first && f <= g.last); }
   function highlighted(f) {
     const i = stepAt(f);
@@ -417,13 +459,16 @@ window.jaxmotionErrors = [];
 
   // ---- camera: orbit about a target in a z-up world
   let lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
-  for (let i = 0; i < joints.length; i++) {
-    lo[i % 3] = Math.min(lo[i % 3], joints[i]);
-    hi[i % 3] = Math.max(hi[i % 3], joints[i]);
+  const framed = K > 0 ? joints : sceneXyz;  // the motion, or a room alone
+  for (let i = 0; i < framed.length; i++) {
+    lo[i % 3] = Math.min(lo[i % 3], framed[i]);
+    hi[i % 3] = Math.max(hi[i % 3], framed[i]);
   }
+  if (K === 0) hi[2] = Math.min(hi[2], 1.4);  // below the ceiling: the cutaway opens the room
   const home = { target: [0, 1, 2].map((c) => 0.5 * (lo[c] + hi[c])),
-    dist: 2.6 * Math.max(1.6, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])),
-    az: -Math.PI / 3, el: 0.55 };
+    dist: (K > 0 ? 2.6 : 1.25) * Math.max(1.6, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])),
+    az: -Math.PI / 3, el: K > 0 ? 0.55 : 0.8 };
+  if (K === 0) for (const id of ["play", "time", "clock"]) document.getElementById(id).style.display = "none";
   let cam = Object.assign({}, home, { target: home.target.slice() });
   const FOV = Math.PI / 4, LIGHT = [0.35, -0.45, 0.82].map((v) => v / Math.hypot(0.35, 0.45, 0.82));
   const CUT_TOP = hi[2] + 0.5, CUT_MARGIN = 0.6;
@@ -465,7 +510,7 @@ window.jaxmotionErrors = [];
   let cut = [1, 0, Infinity, Infinity];
   function updateCut() {
     const d = [Math.cos(cam.az), Math.sin(cam.az)];
-    let front = -Infinity;
+    let front = K > 0 ? -Infinity : home.target[0] * d[0] + home.target[1] * d[1];
     for (let s = 0; s < K; s++) {
       const p = (s * T + frame) * J * 3;
       front = Math.max(front, joints[p] * d[0] + joints[p + 1] * d[1]);
@@ -493,14 +538,26 @@ window.jaxmotionErrors = [];
   const tip = document.getElementById("tip");
   canvas.addEventListener("contextmenu", (ev) => ev.preventDefault());
   canvas.addEventListener("pointerdown", (ev) => {
-    drag = { x: ev.clientX, y: ev.clientY, pan: ev.button === 2 || ev.shiftKey };
+    drag = { x: ev.clientX, y: ev.clientY, pan: ev.button === 2 || ev.shiftKey, moved: 0,
+      button: ev.button };
     canvas.setPointerCapture(ev.pointerId);
   });
-  canvas.addEventListener("pointerup", () => { drag = null; });
+  canvas.addEventListener("pointerup", (ev) => {
+    const click = drag && drag.moved < 5 && drag.button === 0;
+    drag = null;
+    if (click && lastMvp && window.parent !== window) {  // embedded: tell the parent page
+      const n = pickPoint(lastMvp, pointWorld * lastPixels, [ev.offsetX, ev.offsetY]);
+      if (n < 0) return;
+      const o = sceneObj[n] - 1, at = Array.from(sceneXyz.subarray(3 * n, 3 * n + 3));
+      window.parent.postMessage({ type: "jaxmotion-pick", object: o >= 0 ? D.objects[o].id : null,
+        category: o >= 0 ? D.objects[o].category : null, point: at.map((v) => Math.round(v * 1000) / 1000) }, "*");
+    }
+  });
   canvas.addEventListener("pointerleave", () => { hover = null; hovered = -1; tip.style.display = "none"; redraw(); });
   canvas.addEventListener("pointermove", (ev) => {
     if (!drag) { hover = [ev.offsetX, ev.offsetY]; redraw(); return; }
     const dx = ev.clientX - drag.x, dy = ev.clientY - drag.y;
+    drag.moved += Math.abs(dx) + Math.abs(dy);
     drag.x = ev.clientX;
     drag.y = ev.clientY;
     if (drag.pan) {
@@ -528,15 +585,19 @@ window.jaxmotionErrors = [];
     if (w <= 0.01) return null;
     return [(0.5 + 0.5 * x / w) * canvas.clientWidth, (0.5 - 0.5 * y / w) * canvas.clientHeight, w];
   }
-  function pick(mvp, radius) {  // the object under the pointer: the nearest point within reach
+  function pickPoint(mvp, radius, at) {  // the nearest point within reach of ``at`` (pixels)
     let best = -1, depth = Infinity;
     for (let n = 0; n < N; n++) {
       if (cutPoint(n)) continue;
       const q = project(mvp, [sceneXyz[3 * n], sceneXyz[3 * n + 1], sceneXyz[3 * n + 2]]);
       if (!q || q[2] >= depth) continue;
       const r = Math.max(3, Math.min(radius / q[2], 9));
-      if ((q[0] - hover[0]) ** 2 + (q[1] - hover[1]) ** 2 <= r * r) { depth = q[2]; best = n; }
+      if ((q[0] - at[0]) ** 2 + (q[1] - at[1]) ** 2 <= r * r) { depth = q[2]; best = n; }
     }
+    return best;
+  }
+  function pick(mvp, radius) {  // the object under the pointer
+    const best = pickPoint(mvp, radius, hover);
     return best < 0 ? -1 : sceneObj[best] - 1;
   }
 
@@ -578,7 +639,7 @@ window.jaxmotionErrors = [];
   // ---- drawing
   const pointWorld = Math.max(0.008, Math.min(0.06, Math.sqrt(2 * Math.max(1,
     (hi[0] - lo[0] + 4) * (hi[1] - lo[1] + 4)) / Math.max(N, 1))));
-  let pending = false;
+  let pending = false, lastMvp = null, lastPixels = 1;
   function redraw() {
     if (pending) return;
     pending = true;
@@ -671,8 +732,16 @@ window.jaxmotionErrors = [];
         drawLines(pose, gl.POINTS, sampleColour(s));
       }
     }
+    lastMvp = mvp;
+    lastPixels = pixels;
     hovered = hover && !drag ? pick(mvp, pointWorld * pixels) : -1;
     gl.disable(gl.DEPTH_TEST);
+    for (const m of marks) {
+      if (m.object >= 0) drawLines(boxEdges(D.objects[m.object]), gl.LINES, D.highlight);
+      else drawLines(new Float32Array([m.point[0], m.point[1], 0, m.point[0], m.point[1], 0.4,
+        m.point[0] - 0.15, m.point[1], 0.01, m.point[0] + 0.15, m.point[1], 0.01,
+        m.point[0], m.point[1] - 0.15, 0.01, m.point[0], m.point[1] + 0.15, 0.01]), gl.LINES, D.highlight);
+    }
     if (hovered >= 0) drawLines(boxEdges(D.objects[hovered]), gl.LINES, [0.95, 0.95, 0.95]);
     gl.bindVertexArray(null);
     tip.style.display = hovered >= 0 ? "block" : "none";

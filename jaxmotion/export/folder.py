@@ -21,7 +21,7 @@ from jaxmotion.errors import GenerateError
 from jaxmotion.export._common import random_subset
 
 __all__ = ["VIDEO_KINDS", "check_output_folder", "check_outputs", "scene_heat", "summary",
-           "write_generation"]
+           "write_generation", "write_viewer"]
 
 VIDEO_KINDS = (None, "gif", "mp4")
 
@@ -109,18 +109,7 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
         export.write_glb(tmp / "motion.glb", global_orient=p["global_orient"],
                          body_pose=p["body_pose"], transl=p["transl"], betas=p["betas"],
                          fps=res.fps, scene_xyz=xyz, scene_rgb=rgb)
-        heat = scene_heat(res, xyz)
-        cats = {int(o["id"]): o["category"] for o in res.scene.objects}
-        steps = [{**g, "label": g["action"].replace("_", " ") + (
-            f" · {cats.get(int(g['object']), 'object')} {g['object']}" if int(g["object"]) >= 0
-            else "")} for g in res.segments]
-        export.write_viewer_html(tmp / "viewer.html", scene_xyz=xyz, scene_rgb=rgb,
-                                 joints=res.joints, fps=res.fps, text=res.text,
-                                 affordance=heat if np.any(heat) else None, smplx=p,
-                                 scene_normal=res.scene.normal[keep],
-                                 scene_instance=res.scene.instance[keep],
-                                 objects=res.scene.objects, target_id=res.target_id,
-                                 segments=steps, paths=res.paths)
+        write_viewer(res, tmp / "viewer.html")
 
     if video:  # the fitted mannequins in the room (jaxmotion.render), the others beside it
         from jaxmotion.render.results import render_generation
@@ -128,6 +117,29 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
         render_generation(res, tmp / f"motion.{video}", meanwhile=others)
     else:
         others()
+
+
+def write_viewer(res, path) -> Path:
+    """The result's ``viewer.html`` (:func:`jaxmotion.export.write_viewer_html`): the room's
+    points (60k at most, drawn with the result's seed), the bodies, the target and a story's
+    steps and paths; written atomically."""
+    from jaxmotion import export
+
+    keep = random_subset(res.scene.num_points, 60_000, res.seed)
+    xyz, rgb = res.scene.xyz[keep], res.scene.rgb[keep]
+    heat = scene_heat(res, xyz)
+    cats = {int(o["id"]): o["category"] for o in res.scene.objects}
+    steps = [{**g, "label": g["action"].replace("_", " ") + (
+        f" · {cats.get(int(g['object']), 'object')} {g['object']}" if int(g["object"]) >= 0
+        else " · to a point" if g.get("point") is not None else "")} for g in res.segments]
+    return export.write_viewer_html(path, scene_xyz=xyz, scene_rgb=rgb, joints=res.joints,
+                                    fps=res.fps, text=res.text,
+                                    affordance=heat if np.any(heat) else None,
+                                    smplx=res.smplx or None,
+                                    scene_normal=res.scene.normal[keep],
+                                    scene_instance=res.scene.instance[keep],
+                                    objects=res.scene.objects, target_id=res.target_id,
+                                    segments=steps, paths=res.paths)
 
 
 def check_outputs(scene=None, ids=(), *, out=None, video: str | None = "mp4", fit: bool = True,

@@ -43,8 +43,8 @@ from jaxmotion.constants import PASSABLE
 from jaxmotion.errors import GenerateError
 from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
-__all__ = ["PASSABLE", "PREFIX", "Step", "Story", "Teller", "choose", "describe", "read_plan",
-           "reachable_mates", "stood_up", "story_generation", "story_result", "tell"]
+__all__ = ["PASSABLE", "PREFIX", "Step", "Story", "Teller", "choose", "describe", "plan_paths",
+           "read_plan", "reachable_mates", "stood_up", "story_generation", "story_result", "tell"]
 
 #: Frames of the previous motion each step or window starts from (held by inpainting).
 PREFIX = 10
@@ -575,6 +575,68 @@ class Teller:
             s = stop - PREFIX - BLEND
 
 
+def _places(scene, plan, objects, grid, seed):
+    """Where each step's walk starts and ends, ``[(start, goal) or None]`` (None: no walk:
+    a stand-up, or a story's first step on an object, which the models walk on their own),
+    checked: every place exists and can be reached from the one before
+    (:class:`GenerateError` naming the step, and the reachable objects of its class)."""
+    from jaxmotion.motion.planner import PlanningError
+
+    where, out = None, []
+    for i, step in enumerate(plan, 1):
+        if step.action == "stand_up":
+            out.append(None)
+            continue
+        if step.point is not None:
+            try:
+                start = where if where is not None else point_start(grid, step.point, seed)
+                where = _point_goal(grid, step.point, start)
+            except PlanningError as e:
+                raise GenerateError(f"step {i} (walk to the point ({step.point[0]:.2f}, "
+                                    f"{step.point[1]:.2f})): {e}; choose a point of free floor"
+                                    ) from e
+            out.append((start, where))
+            continue
+        obj = objects[step.object]
+        first = where is None
+        start = where if where is not None else scene.xyz[scene.instance == obj["id"],
+                                                          :2].mean(0)
+        try:
+            where = _goal(grid, scene, obj, start, step.action)
+        except PlanningError as e:
+            others = reachable_mates(grid, scene, obj, start, step.action, objects.values())
+            hint = (f"; of its class these can be reached: {', '.join(others)}" if others else
+                    f"; no other {obj['category']} of this room can be reached either")
+            raise GenerateError(f"step {i} ({step.action} on object {step.object}): {e}"
+                                f"{hint}") from e
+        near = (step.action in ("sit", "lie") and not first and np.min(np.linalg.norm(
+            scene.xyz[scene.instance == step.object, :2] - start, axis=1)) <= NEAR)
+        out.append(None if first or near else (start, where))
+    return out
+
+
+def plan_paths(scene, plan, *, seed: int = 0):
+    """The steps of ``plan`` as :func:`tell` takes them (:func:`read_plan`: stand-ups
+    inserted) and the ground paths ``[M, 2]`` its planned walks follow, in order; nothing is
+    sampled (the studio shows them while a story is composed). :class:`GenerateError` for a
+    plan that cannot be told."""
+    from jaxmotion.grounding.objects import object_table
+    from jaxmotion.motion.planner import PlanningError
+    from jaxmotion.planning.paths import point_grid, scene_path
+
+    steps = read_plan(plan, scene)
+    objects = {int(o["id"]): o for o in object_table(scene)}
+    grid = point_grid(scene.xyz, scene.instance)
+    paths = []
+    for i, ends in enumerate(_places(scene, steps, objects, grid, seed), 1):
+        if ends is not None:
+            try:
+                paths.append(scene_path(grid, *ends))
+            except PlanningError as e:
+                raise GenerateError(f"step {i}: {e}") from e
+    return steps, paths
+
+
 def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
          guidance: float = 1.0, progress: bool = False) -> Story:
     """The story of ``plan`` (see :func:`read_plan`) in ``scene`` (a
@@ -601,30 +663,7 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
     objects = {int(o["id"]): o for o in object_table(scene)}
     grid = point_grid(scene.xyz, scene.instance)
     # every place a walk goes must exist and be reachable from the one before: checked first
-    where = None
-    for i, step in enumerate(plan, 1):
-        if step.action == "stand_up":
-            continue
-        if step.point is not None:
-            try:
-                start = where if where is not None else point_start(grid, step.point, seed)
-                where = _point_goal(grid, step.point, start)
-            except PlanningError as e:
-                raise GenerateError(f"step {i} (walk to the point ({step.point[0]:.2f}, "
-                                    f"{step.point[1]:.2f})): {e}; choose a point of free floor"
-                                    ) from e
-            continue
-        obj = objects[step.object]
-        start = where if where is not None else scene.xyz[scene.instance == obj["id"],
-                                                          :2].mean(0)
-        try:
-            where = _goal(grid, scene, obj, start, step.action)
-        except PlanningError as e:
-            others = reachable_mates(grid, scene, obj, start, step.action, objects.values())
-            hint = (f"; of its class these can be reached: {', '.join(others)}" if others else
-                    f"; no other {obj['category']} of this room can be reached either")
-            raise GenerateError(f"step {i} ({step.action} on object {step.object}): {e}"
-                                f"{hint}") from e
+    _places(scene, plan, objects, grid, seed)
     files = resolve_object_checkpoints(files)
     teller = Teller(scene, files, seed, SamplerSpec("ddim", steps, guidance=guidance))
     for i, step in enumerate(plan, 1):

@@ -104,3 +104,23 @@ def test_a_z_up_gltf_is_not_turned_as_if_y_up(rooms):
     out, notes = level_scene(room, prior="y")
     assert np.abs(out.xyz - room.xyz).max() < 1e-6
     assert any("+z-up" in n for n in notes)
+
+
+def test_a_cluttered_ceiling_is_not_taken_for_the_floor(rooms):
+    # a real office scan: a dropped ceiling with lamps and ducts fills the half metre under
+    # the ceiling as densely as the furniture fills the half metre above the floor, and the
+    # ceiling is only partly scanned; the file is z-up and must stay so
+    from jaxmotion.scene.level import find_floor
+
+    for scene in rooms:
+        xyz = scene.xyz
+        top = np.percentile(xyz[:, 2], 99.5)
+        band = (xyz[:, 2] > 0.05) & (xyz[:, 2] < 0.6)
+        rng = np.random.default_rng(0)
+        hang = xyz[band].copy()
+        hang[:, 2] = top - rng.uniform(0.05, 0.6, len(hang))  # as many points, hanging
+        ceiling = xyz[:, 2] > top - 0.03
+        keep = ~ceiling | (rng.random(len(xyz)) < 0.4)  # 40 % of the ceiling scanned
+        floor = find_floor(np.concatenate([xyz[keep], hang]) + [0, 0, -1.45])
+        assert (floor.axis, floor.sign) == (2, 1), (floor.axis, floor.sign)
+        assert abs(floor.normal @ [0, 0, 1] - 1) < 1e-3 and abs(floor.offset + 1.45) < 0.02

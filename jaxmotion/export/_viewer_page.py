@@ -28,7 +28,7 @@ base64 arrays and draws, with no library and no network access:
   bottom, both on opaque backgrounds that nothing is drawn over.
 
 A page with no motion (``K = 0`` samples) shows the room alone, framed whole, without the
-timeline.
+timeline; its cutaway leaves out walls and ceiling on the camera's side, never an object.
 
 Embedded in another page (an ``<iframe>``, as the studio does), the viewer talks with its
 parent by ``postMessage``: a click (a press and release that does not drag) on the room
@@ -41,7 +41,8 @@ page's own).
 
 The page's URL hash sets options: ``#frame=N&body=0&cutaway=0&colour=max&play=1``.
 After each draw it sets ``window.jaxmotionViewer = {ready, frame, frames, samples,
-body}`` and the ``data-frame`` attribute of ``<html>`` so that tests and scripts can
+body, screen}`` (``screen([x, y, z])``: where a world point is drawn, CSS pixels of the
+canvas and depth, or null behind the eye) and the ``data-frame`` attribute of ``<html>`` so that tests and scripts can
 tell the page is up.
 """
 
@@ -520,7 +521,7 @@ window.jaxmotionErrors = [];
     for (let i = 0; i < M; i++) {
       const o = D.objects[i];
       const cx = 0.5 * (o.lo[0] + o.hi[0]), cy = 0.5 * (o.lo[1] + o.hi[1]);
-      objectState[4 * (i + 1)] = on && !tags[i].length && i !== keep && (cx * d[0] + cy * d[1] > cut[2] || o.lo[2] > CUT_TOP) ? 255 : 0;
+      objectState[4 * (i + 1)] = on && K > 0 && !tags[i].length && i !== keep && (cx * d[0] + cy * d[1] > cut[2] || o.lo[2] > CUT_TOP) ? 255 : 0;
       objectState[4 * (i + 1) + 1] = i === keep && !heatShown ? 255 : 0;
     }
     gl.bindTexture(gl.TEXTURE_2D, objectTex);
@@ -755,7 +756,8 @@ window.jaxmotionErrors = [];
       const error = gl.getError();
       if (error !== gl.NO_ERROR) console.error("WebGL error " + error);
     }
-    window.jaxmotionViewer = { ready: true, frame: frame, frames: T, samples: K, body: !!bodies };
+    window.jaxmotionViewer = { ready: true, frame: frame, frames: T, samples: K, body: !!bodies,
+      screen: (p) => project(mvp, p) };  // a world point's CSS pixels on the canvas and depth
     document.documentElement.setAttribute("data-frame", String(frame));
   }
 

@@ -182,10 +182,19 @@ def find_floor(xyz: np.ndarray, prior: int = 2, seed: int = 0) -> Floor | None:
         # what stands on a floor (legs, bases, seats) fills the half metre above it; below
         # a ceiling there are only the walls, which both ends share
         planes.append((int(((height > 0.05) & (height < 0.6)).sum()), share, sign))
-    # the floor: the end the rest of the room stands on; a plane with far fewer points than
-    # the other end's is no floor (an end with nothing)
+    # the floor: the end the rest of the room stands on, weighed by how much of a plane it
+    # is (a real scan's ceiling is often partly scanned, and lamps or a dropped ceiling fill
+    # the half metre below it as furniture fills the half metre above the floor); the file's
+    # own up breaks near ties; a plane with far fewer points than the other end's is no
+    # floor (an end with nothing)
     a, b = planes
-    floor_end = a if (a[0] >= b[0] and a[1] >= 0.3 * b[1]) or b[1] < 0.3 * a[1] else b
+
+    def weight(p):
+        return p[0] * np.sqrt(max(p[1], 1e-9)) * (1.3 if best_axis == prior and p[2] == 1
+                                                   else 1.0)
+
+    floor_end = a if (weight(a) >= weight(b) and a[1] >= 0.3 * b[1]) or b[1] < 0.3 * a[1] \
+        else b
     normal, offset, share = found[best_axis, floor_end[2]]
     return Floor(np.asarray(normal, np.float64), float(offset), float(share), best_axis,
                  floor_end[2])

@@ -24,7 +24,7 @@ PAGE = r"""<!DOCTYPE html>
   html, body { margin: 0; height: 100%; background: #1e2128; color: #e8e8e8;
     font: 13px/1.45 system-ui, sans-serif; }
   body { display: flex; }
-  #side { width: 340px; min-width: 280px; overflow-y: auto; padding: 10px 12px;
+  #side { width: 340px; min-width: 280px; overflow-y: auto; overflow-x: hidden; padding: 10px 12px;
     box-sizing: border-box; background: #15171c; border-right: 1px solid #333; }
   #main { flex: 1; position: relative; }
   #view { position: absolute; inset: 0; width: 100%; height: 100%; border: 0; }
@@ -48,7 +48,8 @@ PAGE = r"""<!DOCTYPE html>
   #error { color: #ff8a80; white-space: pre-wrap; }
   #notes li, #warnings li { margin: 2px 0; }
   #warnings { color: #ffcc80; }
-  #files a { color: #90cdf4; margin-right: 8px; }
+  #files { display: flex; flex-wrap: wrap; gap: 2px 10px; }
+  #files a { color: #90cdf4; }
   #results { list-style: none; padding: 0; margin: 0; }
   #results li { padding: 3px 4px; border-radius: 3px; cursor: pointer; }
   #results li:hover, #results li.open { background: #2d3340; }

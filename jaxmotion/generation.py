@@ -34,8 +34,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import sys
-import time
 import warnings
 from pathlib import Path
 
@@ -138,21 +136,13 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     from jaxmotion.grounding.region import centre_on_object
     from jaxmotion.pipelines.checkpoints import adm_text_tokens, pick_pipeline
     from jaxmotion.pipelines.object_centric import prefetch_sampler
-    from jaxmotion.progress import report
+    from jaxmotion.progress import Laps
     from jaxmotion.scene.checks import check_room, scene_warnings
     from jaxmotion.scene.demo import room_for
     from jaxmotion.text.condition import blank_condition, embed_one
 
-    times: dict[str, float] = {}
-    t0 = [time.perf_counter()]
-
-    shares = {"load": 0.1, "adm": 0.3, "region": 0.2, "sample": 0.85, "fit": 0.95}
-
-    def lap(name):
-        times[name], t0[0] = (now := time.perf_counter()) - t0[0], now
-        report(f"{name} done", shares.get(name))
-        if progress:
-            print(f"  {name:<10} {times[name]:6.2f} s", file=sys.stderr, flush=True)
+    lap = Laps(progress)  # each stage's time, printed with progress, told to a listener
+    times = lap.times
 
     xla_cache = enable_compilation_cache()
     aot_dir = xla_cache / "programs" if opts.aot else None
@@ -204,7 +194,6 @@ def _run(scene, text: str, opts: GenerateOptions, models: _Models, progress: boo
     understood = explain(room, instruction, chosen, how, opts, echo=progress)  # warns, too
     check_outputs(room, [chosen], video=None)  # what saving would refuse, refused before sampling
     after_loads = when_loaded(meanwhile)  # the CLI's renderer: beside the sampling
-    report(f"sampling {k} motion{'s' if k > 1 else ''}", 0.3)
     pipeline = pick_pipeline(opts.pipeline, models.files, chosen)  # needs a target or not
     if pipeline == "cvae":  # the HUMANISE baseline on the square around the target
         from jaxmotion.pipelines import cvae

@@ -162,8 +162,8 @@ def test_uploaded_room_is_segmented_and_results_outlive_a_restart(client, studio
     made = client.post("/api/generate?wait=true", json={"text": "walk to the table"}).json()
     assert studio.idle(300) and made["state"] == "done", made
     cut = Job("20260101-000000-abcdef", {"text": "sit"}, "demo", state="running")
-    studio._save(cut)
-    (studio.folder / "jobs" / cut.id / ".x.generate-tmp").mkdir()
+    (studio.folder / "jobs" / cut.id / ".x.generate-tmp").mkdir(parents=True)  # as a kill leaves
+    (studio.folder / "jobs" / cut.id / "job.json").write_text(json.dumps(cut.record()))
     again = Studio(studio.folder, "demo", video=None, warm=False)
     try:
         listed = {j.id: j for j in again.jobs.values()}

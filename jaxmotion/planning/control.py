@@ -111,23 +111,6 @@ def ground_trajectory(xy, *, height: float, fps: float = 30.0,
     return trajectory_features(pelvis, heading, *walking_rhythm(xy, fps))
 
 
-def _head_for(scene, end) -> int:
-    """The object a path ends at (its points nearest the last point, walls and floors aside):
-    the completion model's target sensor reads it, as in the walks it learned; -1: none."""
-    from jaxmotion.constants import PASSABLE, STRUCTURE
-
-    best, oid = np.inf, -1
-    for o in scene.objects:
-        if o["category"] in PASSABLE or o["category"] in STRUCTURE:
-            continue
-        pts = scene.xyz[scene.instance == o["id"], :2]
-        if len(pts):
-            d = float(np.min(np.linalg.norm(pts - end, axis=1)))
-            if d < best:
-                best, oid = d, int(o["id"])
-    return oid
-
-
 def follow(scene, xy, text: str = "walk along the path", *, seed: int = 0, files=None,
            steps: int = 20, guidance: float = 1.0, object_id: int | None = None,
            progress: bool = False):
@@ -148,7 +131,7 @@ def follow(scene, xy, text: str = "walk along the path", *, seed: int = 0, files
     from jaxmotion.diffusion.samplers import SamplerSpec
     from jaxmotion.motion.representation import motion_to_joints
     from jaxmotion.pipelines.checkpoints import resolve_object_checkpoints
-    from jaxmotion.planning.story import Story, Teller
+    from jaxmotion.planning.story import Story, Teller, head_for
     from jaxmotion.scene.demo import load_scene_arg
 
     scene = load_scene_arg(scene)
@@ -157,7 +140,7 @@ def follow(scene, xy, text: str = "walk along the path", *, seed: int = 0, files
     if object_id is not None and int(object_id) not in ids:
         raise GenerateError(f"object {object_id} is not in the scene; its ids are "
                             f"{sorted(ids)} (jaxmotion scene info)")
-    oid = _head_for(scene, xy[-1]) if object_id is None else int(object_id)
+    oid = head_for(scene, xy[-1]) if object_id is None else int(object_id)
     teller = Teller(scene, resolve_object_checkpoints(files), seed,
                      SamplerSpec("ddim", steps, guidance=guidance))
     if progress:

@@ -292,10 +292,7 @@ def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, flo
 
     free = grid.clearance >= radius
     graph, cell_of = free_graph(free)
-    s = tuple(int(v) for v in grid.index(np.asarray(start, float)[None])[0])
-    if not free[s]:  # from a seat: the nearest free cell
-        ij = np.argwhere(free)
-        s = tuple(ij[np.argmin(np.linalg.norm(ij - np.array(s), axis=1))])
+    s = start_cell(free, graph, cell_of, grid.index(np.asarray(start, float)[None])[0])
     dist = dijkstra(graph, indices=cell_of[s])
     reach_cost = np.full(free.shape, np.inf)
     reach_cost[free] = dist
@@ -307,6 +304,30 @@ def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, flo
         raise PlanningError("no free place near the target can be reached from the start: the "
                             "room's free space is not connected between them")
     return grid.centers(np.asarray(best)[None])[0]
+
+
+#: Free floor (m²) a walk's start must be connected to: a start inside furniture, or on a
+#: pocket of free cells that touches the rest of the floor only at a corner, moves to the
+#: nearest free cell of an area at least this large (or of the largest there is).
+START_AREA = 1.0
+
+
+def start_cell(free: np.ndarray, graph, cell_of: np.ndarray, cell) -> tuple[int, int]:
+    """Where a walk from grid cell ``cell`` starts: the cell itself when it is free and
+    connected to :data:`START_AREA` of free floor, else the nearest cell that is (a person
+    getting up from a seat, or standing in a scan's pocket of floor hemmed in by furniture,
+    steps out to the room's floor; the nearest free cell alone may be an island)."""
+    from scipy.sparse.csgraph import connected_components
+
+    _, comp = connected_components(graph, directed=False)
+    sizes = np.bincount(comp)
+    big = sizes >= min(int(sizes.max()), int(np.ceil(START_AREA / CELL**2)))
+    s = tuple(int(v) for v in cell)
+    if free[s] and big[comp[cell_of[s]]]:
+        return s
+    ij = np.argwhere(free)
+    ij = ij[big[comp[cell_of[ij[:, 0], ij[:, 1]]]]]
+    return tuple(int(v) for v in ij[np.argmin(np.linalg.norm(ij - np.array(s), axis=1))])
 
 
 def free_graph(free: np.ndarray):
@@ -347,10 +368,15 @@ def scene_path(grid: PointGrid, start, goal, *, radius: float = WALK_RADIUS,
     Raises :class:`PlanningError` with the reason."""
     start = np.asarray(start, float)
     if grid.clearance_at(start)[0] < end_radius:
-        ij = np.argwhere(grid.clearance >= end_radius + 0.5 * CELL)
-        if not len(ij):
+        free = grid.clearance >= end_radius + 0.5 * CELL
+        if not free.any():
             raise PlanningError("the scene has no free floor for a walking body")
-        near = grid.centers(ij)[np.argmin(np.linalg.norm(grid.centers(ij) - start, axis=1))]
+        graph, cell_of = free_graph(free)
+        near = grid.centers(np.asarray(start_cell(free, graph, cell_of,
+                                                  grid.index(start[None])[0]))[None])[0]
+        if np.linalg.norm(near - start) > 1.0:  # no open floor near: the nearest free cell
+            ij = np.argwhere(free)
+            near = grid.centers(ij)[np.argmin(np.linalg.norm(grid.centers(ij) - start, axis=1))]
         if np.linalg.norm(near - start) > 1.0:
             raise PlanningError(f"the start {start.round(2).tolist()} is more than 1 m from "
                                 "free floor")

@@ -43,7 +43,8 @@ from jaxmotion.constants import PASSABLE
 from jaxmotion.errors import GenerateError
 from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
-__all__ = ["PASSABLE", "PREFIX", "Step", "Story", "Teller", "choose", "describe", "plan_paths",
+__all__ = ["PASSABLE", "PREFIX", "Step", "Story", "Teller", "choose", "describe", "head_for",
+           "plan_paths",
            "read_plan", "reachable_mates", "stood_up", "story_generation", "story_result", "tell"]
 
 #: Frames of the previous motion each step or window starts from (held by inpainting).
@@ -182,6 +183,23 @@ def _check_point(i: int, step: Step, scene) -> tuple[float, float]:
     return float(xy[0]), float(xy[1])
 
 
+def head_for(scene, end) -> int:
+    """The object a path ends at (its points nearest the last point, walls and floors aside):
+    the completion model's target sensor reads it, as in the walks it learned; -1: none."""
+    from jaxmotion.constants import PASSABLE, STRUCTURE
+
+    best, oid = np.inf, -1
+    for o in scene.objects:
+        if o["category"] in PASSABLE or o["category"] in STRUCTURE:
+            continue
+        pts = scene.xyz[scene.instance == o["id"], :2]
+        if len(pts):
+            d = float(np.min(np.linalg.norm(pts - end, axis=1)))
+            if d < best:
+                best, oid = d, int(o["id"])
+    return oid
+
+
 def _rot6(m):
     from jaxmotion.geometry.rotations import matrix_to_rotation_6d
 
@@ -250,16 +268,13 @@ def point_start(grid, goal, seed: int) -> np.ndarray:
     from scipy.sparse.csgraph import dijkstra
 
     from jaxmotion.motion.planner import PlanningError
-    from jaxmotion.planning.paths import WALK_RADIUS, free_graph
+    from jaxmotion.planning.paths import WALK_RADIUS, free_graph, start_cell
 
     free = grid.clearance >= WALK_RADIUS
+    if not free.any():
+        raise PlanningError("the room has no free floor to walk on")
     graph, cell_of = free_graph(free)
-    g = tuple(int(v) for v in grid.index(np.asarray(goal, float)[None])[0])
-    if not free[g]:
-        ij = np.argwhere(free)
-        if not len(ij):
-            raise PlanningError("the room has no free floor to walk on")
-        g = tuple(ij[np.argmin(np.linalg.norm(ij - np.array(g), axis=1))])
+    g = start_cell(free, graph, cell_of, grid.index(np.asarray(goal, float)[None])[0])
     reach = np.isfinite(dijkstra(graph, indices=cell_of[g]))
     cells = np.argwhere(free)[reach]
     xy = grid.centers(cells)
@@ -483,7 +498,6 @@ class Teller:
         """A planned path to the free place nearest ``point`` (xy), the body written along
         it; the first step of a story starts standing at :func:`point_start`, facing the
         way. The walk's target sensor reads the object nearest the point."""
-        from jaxmotion.planning.control import _head_for
         from jaxmotion.planning.paths import scene_path
         from jaxmotion.planning.trajectory import path_trajectory
 
@@ -491,7 +505,7 @@ class Teller:
         start = (point_start(grid, point, self.seed) if self.motion is None
                  else self.motion[-1, :2])
         path = scene_path(grid, start, _point_goal(grid, point, start))
-        oid = _head_for(self.scene, path[-1])
+        oid = head_for(self.scene, path[-1])
         cats = {int(o["id"]): o["category"] for o in self.scene.objects}
         emb = self.embed(_TEXT["walk"].format(cats[oid]) if oid >= 0 else "walk forward")
         face = path[-1] - path[-2] if len(path) > 1 else np.array([1.0, 0.0])

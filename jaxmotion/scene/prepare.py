@@ -60,10 +60,12 @@ def instances_from_classes(scene):
     """``scene`` with instance ids and its object table for per-point classes without them:
     each class's points (structure and unknown aside) split into connected groups and where
     objects touch (:func:`jaxmotion.scene.segment.find_components`, :func:`~jaxmotion.scene.
-    segment.split_groups`)."""
+    segment.split_groups`), an object's fragments under it joined to it
+    (:func:`~jaxmotion.scene.segment.merge_fragments`)."""
     from jaxmotion.constants import STRUCTURE
     from jaxmotion.scene.objects import category_names
-    from jaxmotion.scene.segment import FLOOR_BAND, find_components, split_groups
+    from jaxmotion.scene.segment import (FLOOR_BAND, find_components, merge_fragments,
+                                         split_groups)
 
     names = category_names()
     xyz = np.asarray(scene.xyz, np.float64)
@@ -74,7 +76,7 @@ def instances_from_classes(scene):
         comp = find_components(xyz, (scene.semantic == cls) & (xyz[:, 2] > FLOOR_BAND))
         group[comp >= 0] = comp[comp >= 0] + offset
         offset += int(comp.max()) + 1
-    instance = split_groups(xyz, group)
+    instance = merge_fragments(xyz, split_groups(xyz, group), scene.semantic)
     return dataclasses.replace(scene, instance=instance, objects=())  # table derived on build
 
 

@@ -50,7 +50,7 @@ __all__ = ["CEILING", "FLOOR", "FLOOR_BAND", "MIN_CONFIDENCE", "MIN_POINTS", "MI
            "find_structure", "split_touching",
            "object_features", "segment_scene", "support_surfaces"]
 
-SEGMENT_VERSION = "jm-segment-2"  # bump when the labels a room gets change (caches key on it)
+SEGMENT_VERSION = "jm-segment-3"  # bump when the labels a room gets change (caches key on it)
 FLOOR, WALL, CEILING = (STRUCTURE_IDS[k] for k in ("floor", "wall", "ceiling"))  # semantic ids
 FLOOR_BAND = 0.03  # m above z = 0 that is floor
 PLANE_TOL = 0.035  # m: a point this close to a wall / ceiling plane belongs to it
@@ -198,6 +198,54 @@ def split_groups(xyz: np.ndarray, group: np.ndarray) -> np.ndarray:
     return out
 
 
+#: A part narrower than this (m, its widest horizontal side), or whose top is lower than
+#: ``FRAGMENT_TOP`` (m), is a fragment of an object when it lies under another part's
+#: footprint (:func:`merge_fragments`).
+FRAGMENT_WIDTH = 0.3
+FRAGMENT_TOP = 0.35
+
+
+def merge_fragments(xyz: np.ndarray, instance: np.ndarray, kind=None) -> np.ndarray:
+    """``instance`` with the fragments of an object joined to it: a part narrower than
+    :data:`FRAGMENT_WIDTH` or lower than :data:`FRAGMENT_TOP` whose centre lies (from above)
+    within 10 cm of the footprint of a part that is neither and rises at least 10 cm higher
+    (of the same ``kind [N]`` class, when given) is that part's (the largest such): an office
+    chair's star base under its seat, a table's legs cut off by a scan's holes. Objects standing on others (a lamp on a desk) rise above them
+    and are kept. Ids are renumbered from 0 in order."""
+    xyz = np.asarray(xyz, np.float64)
+    ids = np.unique(instance[instance >= 0])
+    if len(ids) < 2:
+        return instance
+    lo = np.array([xyz[instance == i].min(0) for i in ids])
+    hi = np.array([xyz[instance == i].max(0) for i in ids])
+    count = np.array([(instance == i).sum() for i in ids])
+    cls = (None if kind is None else
+           np.array([np.bincount(np.asarray(kind)[instance == i] + 1).argmax() for i in ids]))
+    width = (hi[:, :2] - lo[:, :2]).max(1)
+    small = (width < FRAGMENT_WIDTH) | (hi[:, 2] < FRAGMENT_TOP)
+    target = np.arange(len(ids))
+    for f in np.argsort(count):
+        if not small[f]:
+            continue
+        c = (lo[f, :2] + hi[f, :2]) / 2
+        host = ((np.all(c > lo[:, :2] - 0.1, 1)) & (np.all(c < hi[:, :2] + 0.1, 1))
+                & (hi[:, 2] > hi[f, 2] + 0.1) & ~small)
+        if cls is not None:
+            host &= cls == cls[f]
+        host[f] = False
+        if host.any():
+            target[f] = int(np.flatnonzero(host)[np.argmax(count[host])])
+    for f in range(len(ids)):  # follow chains to their root
+        while target[target[f]] != target[f]:
+            target[f] = target[target[f]]
+    roots = np.unique(target)
+    new = np.full(int(ids.max()) + 1, -1)
+    new[ids] = np.searchsorted(roots, target)
+    out = instance.copy()
+    out[instance >= 0] = new[instance[instance >= 0]]
+    return out
+
+
 def find_instances(xyz: np.ndarray, structure: Structure, split: bool = True) -> np.ndarray:
     """``[N]`` instance ids of a levelled room (−1: none): :func:`find_components` of the
     points that are not structure, each split where objects touch (:func:`split_groups`,
@@ -210,6 +258,7 @@ def find_instances(xyz: np.ndarray, structure: Structure, split: bool = True) ->
     instance = find_components(xyz, (structure.label == 0) & (xyz[:, 2] > FLOOR_BAND))
     if split:  # objects that touch, told apart from above
         instance = split_groups(xyz, instance)
+    instance = merge_fragments(xyz, instance)
     wall = np.flatnonzero(structure.label == WALL)
     mine = np.flatnonzero(instance >= 0)
     if not len(wall) or not len(mine):

@@ -1,6 +1,6 @@
 """The studio's page: one HTML document, no library, nothing loaded from the network.
 
-Left, the controls: the room (upload a file, or pick one the studio knows), the instruction
+Left, the controls: the room (upload or drop a file, or pick one the studio knows), the instruction
 box, the plan being composed (steps added by clicks, moved up or down, removed), samples and
 seed, *Generate*, the stage and progress of the running job (streamed from
 ``/api/jobs/{id}/events``), the notes and warnings of the result, its downloads, and every
@@ -64,6 +64,7 @@ PAGE = r"""<!DOCTYPE html>
   <div class="row"><select id="rooms" title="rooms this studio knows"></select>
     <label><button id="uploadButton" type="button">upload…</button>
     <input id="upload" type="file" hidden accept=".ply,.obj,.glb,.off,.stl,.npz"></label></div>
+  <div class="hint">or drop a room file (PLY, OBJ, GLB, OFF, STL, NPZ) on the page</div>
   <div id="roomInfo" class="hint"></div>
   <h2>Instruction</h2>
   <textarea id="text" rows="2" maxlength="500"
@@ -164,8 +165,13 @@ PAGE = r"""<!DOCTYPE html>
     catch (e) { showError(e); }
   });
   $("uploadButton").addEventListener("click", () => $("upload").click());
-  $("upload").addEventListener("change", async () => {
-    const f = $("upload").files[0];
+  $("upload").addEventListener("change", () => { uploadRoom($("upload").files[0]); });
+  document.addEventListener("dragover", (ev) => { ev.preventDefault(); });
+  document.addEventListener("drop", (ev) => {  // a room file dropped anywhere on the page
+    ev.preventDefault();
+    if (ev.dataTransfer && ev.dataTransfer.files.length) uploadRoom(ev.dataTransfer.files[0]);
+  });
+  async function uploadRoom(f) {
     if (!f) return;
     showError(null);
     $("stage").textContent = "reading " + f.name + "…";
@@ -174,7 +180,7 @@ PAGE = r"""<!DOCTYPE html>
     try { showRoom(await api("POST", "/api/scene", form, true)); await loadRooms(); $("stage").textContent = ""; }
     catch (e) { showError(e); $("stage").textContent = ""; }
     $("upload").value = "";
-  });
+  }
 
   // ---- picking (messages from the viewer in the frame)
   window.addEventListener("message", (ev) => {

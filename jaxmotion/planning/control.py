@@ -125,13 +125,11 @@ def follow(scene, xy, text: str = "walk along the path", *, seed: int = 0, files
       object_id: the object the walk heads for (its target sensor); None: the object nearest
         the path's end.
     """
-    import jax.numpy as jnp
 
     from jaxmotion.constants import SCENE_FPS
     from jaxmotion.diffusion.samplers import SamplerSpec
-    from jaxmotion.motion.representation import motion_to_joints
     from jaxmotion.pipelines.checkpoints import resolve_object_checkpoints
-    from jaxmotion.planning.story import Story, Teller, head_for
+    from jaxmotion.planning.story import Story, Teller, head_for, story_arrays
     from jaxmotion.scene.demo import load_scene_arg
 
     scene = load_scene_arg(scene)
@@ -147,7 +145,7 @@ def follow(scene, xy, text: str = "walk along the path", *, seed: int = 0, files
         print(f"  following a {len(xy) / SCENE_FPS:.1f} s path", flush=True)
     full = ground_trajectory(xy, height=teller.stand, fps=SCENE_FPS)
     motion = teller.along(full, 0, oid, teller.embed(text))
-    joints = np.asarray(motion_to_joints(jnp.asarray(motion), teller.betas))
+    joints, _ = story_arrays(motion)
     return Story(motion, joints, SCENE_FPS, [{"action": "walk", "object": oid, "first": 0,
                                                "last": len(motion) - 1}],
                  [xy.astype(np.float32)])

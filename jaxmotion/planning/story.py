@@ -45,7 +45,8 @@ from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
 __all__ = ["PASSABLE", "PREFIX", "Step", "Story", "Teller", "choose", "describe", "head_for",
            "plan_paths",
-           "read_plan", "reachable_mates", "stood_up", "story_generation", "story_result", "tell"]
+           "read_plan", "reachable_mates", "stood_up", "story_arrays", "story_generation", "story_result",
+           "tell"]
 
 #: Frames of the previous motion each step or window starts from (held by inpainting).
 PREFIX = 10
@@ -378,6 +379,34 @@ def _programs(files: tuple[str, str], sampler):
         jax.jit(complete)
 
 
+#: Stories' lengths vary; their features are turned into joints and SMPL-X parameters by
+#: programs compiled for lengths rounded up to a multiple of this (frames), the extra frames
+#: copies of the last (every conversion is per frame), so a warm process compiles once per
+#: bucket instead of once per story (eagerly, op by op, that was 6 s of a 9 s walk).
+LENGTH_BUCKET = 60
+
+
+@functools.lru_cache(maxsize=1)
+def _conversions():
+    from jaxmotion.motion.representation import motion_to_joints, motion_to_smplx
+
+    return jax.jit(motion_to_joints), jax.jit(motion_to_smplx)
+
+
+def story_arrays(motion, betas=None) -> tuple[np.ndarray, dict]:
+    """``(joints [T, 22, 3], SMPL-X parameters {global_orient [T, 3], body_pose [T, 21, 3],
+    transl [T, 3]})`` of story features ``motion [T, 135]`` (scene frame) for a body of shape
+    ``betas`` (None: the neutral body)."""
+    motion = np.asarray(motion, np.float32)
+    t = len(motion)
+    n = max(LENGTH_BUCKET, -(-t // LENGTH_BUCKET) * LENGTH_BUCKET)
+    padded = jnp.asarray(np.concatenate([motion, np.repeat(motion[-1:], n - t, axis=0)]))
+    to_joints, to_smplx = _conversions()
+    betas = jnp.zeros(10, jnp.float32) if betas is None else jnp.asarray(betas, jnp.float32)
+    joints = np.asarray(to_joints(padded, betas))[:t]
+    return joints, {k: np.asarray(v, np.float32)[:t] for k, v in to_smplx(padded, betas).items()}
+
+
 class Teller:
     """The state of one story being told (models, compiled steps, the motion so far): the
     steps of :func:`tell` and the trajectory control of :mod:`jaxmotion.planning.control`."""
@@ -666,7 +695,6 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
     from jaxmotion.diffusion.samplers import SamplerSpec
     from jaxmotion.grounding.objects import object_table
     from jaxmotion.motion.planner import PlanningError
-    from jaxmotion.motion.representation import motion_to_joints
     from jaxmotion.pipelines.checkpoints import resolve_object_checkpoints
     from jaxmotion.planning.paths import point_grid
     from jaxmotion.progress import report
@@ -704,7 +732,7 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
             teller.on_object(step.action, obj)
         except PlanningError as e:
             raise GenerateError(f"step {i} ({step.action} on object {step.object}): {e}") from e
-    joints = np.asarray(motion_to_joints(jnp.asarray(teller.motion), teller.betas))
+    joints, _ = story_arrays(teller.motion)
     return Story(teller.motion, joints, SCENE_FPS, teller.segments, teller.paths)
 
 
@@ -745,11 +773,9 @@ def story_result(story: Story, room, text: str, opts, timings: dict, *, pipeline
     ``segments`` and ``paths`` set, with the SMPL-X parameters of the motion itself (the
     object-centric models write joint rotations: no fit is needed, the fit error is 0)."""
     from jaxmotion.constants import SCENE_FPS
-    from jaxmotion.motion.representation import motion_to_smplx
     from jaxmotion.result import Generation
 
-    smplx = {k: np.asarray(v, np.float32)[None]
-             for k, v in motion_to_smplx(jnp.asarray(story.motion)).items()}
+    smplx = {k: v[None] for k, v in story_arrays(story.motion)[1].items()}
     smplx["betas"] = np.zeros((1, 10), np.float32)
     n = len(story.joints)
     return Generation(

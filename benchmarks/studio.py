@@ -13,7 +13,8 @@ the request, the queue and the JSON with the joints, not a network):
    (``JAXMOTION_CACHE`` pointed at a new folder), no warm-up; a click on the chair, timed
    from the request to the answer of ``?wait=true``. The baseline, measured in the same run:
    the cold command-line ``jaxmotion generate`` in a fresh process on that empty cache;
-2. **warm**, after each previous job's files are written (the user watches the result
+2. **warm** (after :meth:`Studio.warm_up`, which a started studio runs before the first
+   click, and one story), after each previous job's files are written (the user watches the result
    before the next click): clicks on each seat, new sentences (each sentence new to the
    process: the text encoder runs), a floor point, and a 3-step story (walk to a point,
    walk to the table, sit on the chair), ``--rounds`` times each with new seeds.
@@ -74,6 +75,7 @@ def main(argv=None) -> int:
     out["first_request_s"] = round(timed({"object_id": objects["chair"]}), 2)
     print(f"studio start {out['studio_start_s']:.2f} s; first request (a click, cold): "
           f"{out['first_request_s']:.2f} s", flush=True)
+    studio.warm_up()  # what a started studio does on its own before the first click
     timed({"plan": [{"action": "walk", "point": [2.0, 3.0]},
                     {"action": "sit", "object": objects["chair"]}]})  # the story programs
     sentences = ["have a seat on the stool", "go and stand by the fridge",

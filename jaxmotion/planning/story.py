@@ -380,10 +380,11 @@ def _programs(files: tuple[str, str], sampler):
 
 
 #: Stories' lengths vary; their features are turned into joints and SMPL-X parameters by
-#: programs compiled for lengths rounded up to a multiple of this (frames), the extra frames
-#: copies of the last (every conversion is per frame), so a warm process compiles once per
-#: bucket instead of once per story (eagerly, op by op, that was 6 s of a 9 s walk).
-LENGTH_BUCKET = 60
+#: programs compiled for lengths rounded up to a power of two of at least this (frames), the
+#: extra frames copies of the last (every conversion is per frame), so a warm process compiles
+#: a handful of programs instead of one per story length (eagerly, op by op, that was 6 s of a
+#: 9 s walk).
+LENGTH_BUCKET = 128
 
 
 @functools.lru_cache(maxsize=1)
@@ -399,7 +400,7 @@ def story_arrays(motion, betas=None) -> tuple[np.ndarray, dict]:
     ``betas`` (None: the neutral body)."""
     motion = np.asarray(motion, np.float32)
     t = len(motion)
-    n = max(LENGTH_BUCKET, -(-t // LENGTH_BUCKET) * LENGTH_BUCKET)
+    n = max(LENGTH_BUCKET, 1 << (t - 1).bit_length())
     padded = jnp.asarray(np.concatenate([motion, np.repeat(motion[-1:], n - t, axis=0)]))
     to_joints, to_smplx = _conversions()
     betas = jnp.zeros(10, jnp.float32) if betas is None else jnp.asarray(betas, jnp.float32)

@@ -422,13 +422,14 @@ class Studio:
             if job_id == "stop":
                 return
             if job_id is None:
-                self._warm_up()
+                self.warm_up()
                 continue
             self._run(self.jobs[job_id])
 
-    def _warm_up(self) -> None:
-        """One small generate in the current room, discarded: the samplers' programs are
-        compiled (or loaded from the on-disk cache) before the first click."""
+    def warm_up(self) -> None:
+        """One small generate in the current room, discarded, and a story's conversions at
+        the common lengths: the programs are compiled (or loaded from the on-disk cache)
+        before the first click."""
         import jaxmotion
 
         try:
@@ -437,6 +438,10 @@ class Studio:
                 jaxmotion.generate(self.room.scene, "walk to the table", **self._opts(1, 0))
         except Exception:  # noqa: BLE001  a room the default text does not fit: still warm
             pass
+        from jaxmotion.planning.story import LENGTH_BUCKET, story_arrays
+
+        for n in (LENGTH_BUCKET, 2 * LENGTH_BUCKET, 4 * LENGTH_BUCKET):  # stories' lengths
+            story_arrays(np.zeros((n, 135), np.float32))
         with self._changed:
             self.warm = True
             self._changed.notify_all()

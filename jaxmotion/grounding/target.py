@@ -326,8 +326,8 @@ def _instead(target, action, r, by_class, warns, objects):
         found = _takers(action, classes, by_class, objects)
         if found:
             warns.append(f"there is no {target} in this room (its objects: "
-                         f"{_classes(objects)}); {_VERB[action]} one of its "
-                         f"{_plural(action)} instead")
+                         f"{_classes(objects)}); {_VERB[action]} one of those it has instead: "
+                         f"{_names(found)}")
             return found, "action"
     if classes is None:  # with an action that needs one, the caller says there is none
         warns.append(f"there is no {target} in this room (its objects: {_classes(objects)}); "

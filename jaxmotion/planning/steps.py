@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 
+from jaxmotion.constants import STRUCTURE
 from jaxmotion.errors import GenerateError
 
 __all__ = ["is_story", "plan_from_text", "split_steps"]
@@ -132,9 +133,11 @@ def plan_from_text(scene, text, similarity=None):
                 r = ins.reading
                 why = (f"this room has no {r.target_words or r.target} (its objects: {have})"
                        if r.target else f"it names no object of this room (its objects: {have})")
+                example = next((f"'{o['category']} {o['id']}'" for o in objects
+                                if o["category"] not in STRUCTURE), "'chair 3'")
                 raise GenerateError(
                     f"step {i} ('{clause}'): {why}; name one of its objects by its id as "
-                    "`jaxmotion scene info` lists them ('chair 3'), or give a plan file")
+                    f"`jaxmotion scene info` lists them ({example}), or give a plan file")
             fits = [o for o in found.objects if takes(o)] or found.objects
             obj = fits[0] if prev is None or len(fits) == 1 else nearest(fits, prev)
             why = {"named id": "named by its id"}.get(found.how, f"found by {found.how}")

@@ -410,8 +410,9 @@ def _cmd_studio(args: argparse.Namespace) -> int:
         import fastapi  # noqa: F401
         import uvicorn  # noqa: F401
     except ImportError as e:
-        raise ValueError(f"the studio needs the web packages ({e.name} is missing): "
-                         "pip install 'jaxmotion[studio]'") from None
+        raise ValueError(f"the studio needs the web packages ({e.name} is missing); they are "
+                         "among jaxmotion's dependencies: reinstall it (pip install -c "
+                         "requirements.lock -e .)") from None
     options = {k: v for k, v in (("up", args.up), ("unit", args.unit), ("steps", args.steps))
                if v is not None}
     try:

@@ -125,7 +125,6 @@ def follow(scene, xy, text: str = "walk along the path", *, seed: int = 0, files
       object_id: the object the walk heads for (its target sensor); None: the object nearest
         the path's end.
     """
-
     from jaxmotion.constants import SCENE_FPS
     from jaxmotion.diffusion.samplers import SamplerSpec
     from jaxmotion.pipelines.checkpoints import resolve_object_checkpoints

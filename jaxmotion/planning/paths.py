@@ -312,11 +312,13 @@ def approach_point(grid: PointGrid, target_xy, start, *, reach: tuple[float, flo
 START_AREA = 1.0
 
 
-def start_cell(free: np.ndarray, graph, cell_of: np.ndarray, cell) -> tuple[int, int]:
+def start_cell(free: np.ndarray, graph, cell_of: np.ndarray, cell,
+               within: float | None = None) -> tuple[int, int]:
     """Where a walk from grid cell ``cell`` starts: the cell itself when it is free and
     connected to :data:`START_AREA` of free floor, else the nearest cell that is (a person
     getting up from a seat, or standing in a scan's pocket of floor hemmed in by furniture,
-    steps out to the room's floor; the nearest free cell alone may be an island)."""
+    steps out to the room's floor; the nearest free cell alone may be an island). With
+    ``within`` (m): when no such cell is that near, the nearest free cell."""
     from scipy.sparse.csgraph import connected_components
 
     _, comp = connected_components(graph, directed=False)
@@ -326,8 +328,12 @@ def start_cell(free: np.ndarray, graph, cell_of: np.ndarray, cell) -> tuple[int,
     if free[s] and big[comp[cell_of[s]]]:
         return s
     ij = np.argwhere(free)
-    ij = ij[big[comp[cell_of[ij[:, 0], ij[:, 1]]]]]
-    return tuple(int(v) for v in ij[np.argmin(np.linalg.norm(ij - np.array(s), axis=1))])
+    d = np.linalg.norm(ij - np.array(s), axis=1)
+    open_floor = big[comp[cell_of[ij[:, 0], ij[:, 1]]]]
+    best = np.flatnonzero(open_floor)[np.argmin(d[open_floor])]
+    if within is not None and d[best] * CELL > within:  # no open floor near: the nearest cell
+        best = int(np.argmin(d))
+    return tuple(int(v) for v in ij[best])
 
 
 def free_graph(free: np.ndarray):
@@ -373,10 +379,8 @@ def scene_path(grid: PointGrid, start, goal, *, radius: float = WALK_RADIUS,
             raise PlanningError("the scene has no free floor for a walking body")
         graph, cell_of = free_graph(free)
         near = grid.centers(np.asarray(start_cell(free, graph, cell_of,
-                                                  grid.index(start[None])[0]))[None])[0]
-        if np.linalg.norm(near - start) > 1.0:  # no open floor near: the nearest free cell
-            ij = np.argwhere(free)
-            near = grid.centers(ij)[np.argmin(np.linalg.norm(grid.centers(ij) - start, axis=1))]
+                                                  grid.index(start[None])[0], within=1.0)
+                                       )[None])[0]
         if np.linalg.norm(near - start) > 1.0:
             raise PlanningError(f"the start {start.round(2).tolist()} is more than 1 m from "
                                 "free floor")

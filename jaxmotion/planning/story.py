@@ -44,9 +44,8 @@ from jaxmotion.errors import GenerateError
 from jaxmotion.scene.furniture import LIE_CATEGORIES, SEAT_CATEGORIES
 
 __all__ = ["PASSABLE", "PREFIX", "Step", "Story", "Teller", "choose", "describe", "head_for",
-           "plan_paths",
-           "read_plan", "reachable_mates", "stood_up", "story_arrays", "story_generation", "story_result",
-           "tell"]
+           "plan_paths", "read_plan", "reachable_mates", "stood_up", "story_arrays",
+           "story_generation", "story_result", "tell"]
 
 #: Frames of the previous motion each step or window starts from (held by inpainting).
 PREFIX = 10
@@ -187,7 +186,7 @@ def _check_point(i: int, step: Step, scene) -> tuple[float, float]:
 def head_for(scene, end) -> int:
     """The object a path ends at (its points nearest the last point, walls and floors aside):
     the completion model's target sensor reads it, as in the walks it learned; -1: none."""
-    from jaxmotion.constants import PASSABLE, STRUCTURE
+    from jaxmotion.constants import STRUCTURE
 
     best, oid = np.inf, -1
     for o in scene.objects:
@@ -423,7 +422,6 @@ class Teller:
         self.windows = 0
         self.motion = None  # [T, 135] scene frame
         self.segments, self.paths = [], []
-        self.betas = jnp.zeros(10, jnp.float32)
         self._emb = {}
 
     def text(self, action, obj) -> np.ndarray:
@@ -541,16 +539,16 @@ class Teller:
         face = path[-1] - path[-2] if len(path) > 1 else np.array([1.0, 0.0])
         if self.motion is not None:
             self._walk(path, path[-1] + face, -1, emb, oid)
-            return
-        heading = float(np.arctan2(face[1], face[0]))
-        d0 = path[min(len(path) - 1, 10)] - path[0]
-        traj = path_trajectory(path, start_heading=float(np.arctan2(d0[1], d0[0])),
-                               end_heading=heading, height=self.stand)
-        self.motion = self.along(traj, 0, oid, emb)
-        self.paths.append(path)
-        self.segments.append({"action": "walk", "object": -1, "first": 0,
-                              "last": len(self.motion) - 1,
-                              "point": [float(point[0]), float(point[1])]})
+        else:
+            heading = float(np.arctan2(face[1], face[0]))
+            d0 = path[min(len(path) - 1, 10)] - path[0]
+            traj = path_trajectory(path, start_heading=float(np.arctan2(d0[1], d0[0])),
+                                   end_heading=heading, height=self.stand)
+            self.motion = self.along(traj, 0, oid, emb)
+            self.paths.append(path)
+            self.segments.append({"action": "walk", "object": -1, "first": 0,
+                                  "last": len(self.motion) - 1})
+        self.segments[-1]["point"] = [float(point[0]), float(point[1])]  # the point asked for
 
     def _walk(self, path, centre, oid, emb, sensor=None):
         """The walk along ``path`` from where the motion ends, turning to face ``centre``
@@ -576,8 +574,6 @@ class Teller:
         self.motion = np.concatenate([self.motion[:-BLEND], seg[PREFIX:]])
         self.segments.append({"action": "walk", "object": int(oid), "first": first,
                               "last": len(self.motion) - 1})
-        if oid < 0:
-            self.segments[-1]["point"] = [float(v) for v in path[-1]]
 
     def along(self, full, lead, oid, emb):
         """The body written along the root trajectory ``full [n, 9]`` (scene frame) by the

@@ -210,8 +210,9 @@ def merge_fragments(xyz: np.ndarray, instance: np.ndarray, kind=None) -> np.ndar
     :data:`FRAGMENT_WIDTH` or lower than :data:`FRAGMENT_TOP` whose centre lies (from above)
     within 10 cm of the footprint of a part that is neither and rises at least 10 cm higher
     (of the same ``kind [N]`` class, when given) is that part's (the largest such): an office
-    chair's star base under its seat, a table's legs cut off by a scan's holes. Objects standing on others (a lamp on a desk) rise above them
-    and are kept. Ids are renumbered from 0 in order."""
+    chair's star base under its seat, a table's legs cut off by a scan's holes. Objects
+    standing on others (a lamp on a desk) rise above them and are kept. Ids are renumbered
+    from 0 in order."""
     xyz = np.asarray(xyz, np.float64)
     ids = np.unique(instance[instance >= 0])
     if len(ids) < 2:
@@ -223,21 +224,15 @@ def merge_fragments(xyz: np.ndarray, instance: np.ndarray, kind=None) -> np.ndar
            np.array([np.bincount(np.asarray(kind)[instance == i] + 1).argmax() for i in ids]))
     width = (hi[:, :2] - lo[:, :2]).max(1)
     small = (width < FRAGMENT_WIDTH) | (hi[:, 2] < FRAGMENT_TOP)
-    target = np.arange(len(ids))
-    for f in np.argsort(count):
-        if not small[f]:
-            continue
+    target = np.arange(len(ids))  # hosts are never small: a fragment joins a root at once
+    for f in np.flatnonzero(small):
         c = (lo[f, :2] + hi[f, :2]) / 2
         host = ((np.all(c > lo[:, :2] - 0.1, 1)) & (np.all(c < hi[:, :2] + 0.1, 1))
                 & (hi[:, 2] > hi[f, 2] + 0.1) & ~small)
         if cls is not None:
             host &= cls == cls[f]
-        host[f] = False
         if host.any():
             target[f] = int(np.flatnonzero(host)[np.argmax(count[host])])
-    for f in range(len(ids)):  # follow chains to their root
-        while target[target[f]] != target[f]:
-            target[f] = target[target[f]]
     roots = np.unique(target)
     new = np.full(int(ids.max()) + 1, -1)
     new[ids] = np.searchsorted(roots, target)

@@ -282,6 +282,7 @@ class Studio:
         nothing is sampled). Keys: ``text``, ``object_id``, ``point`` ([x, y] or [x, y, z]),
         ``plan`` (steps ``{"action", "object"}`` or ``{"action": "walk", "point": [x, y]}``),
         ``seed``, ``samples``."""
+        from jaxmotion.grounding import read_instruction
         from jaxmotion.grounding.phrasing import takes
         from jaxmotion.planning.story import read_plan
         from jaxmotion.text.condition import check_text
@@ -310,8 +311,7 @@ class Studio:
         objects = {int(o["id"]): o for o in room.scene.objects}
         if point is not None:
             plan = [{"action": "walk", "point": point}]
-            if out["text"] and not re.search(r"\b(walk|go|run|stroll|head|move|step)", text,
-                                             re.I):
+            if out["text"] and read_instruction(out["text"]).action != "walk":
                 raise StudioError("a point of the floor can only be walked to; click an object "
                                   f"to {text!r} it, or leave the text empty", 422)
         if plan is not None:

@@ -11,6 +11,7 @@ two frames, faster than :data:`MAX_SPEED`, outside the room) before any model is
 
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -141,7 +142,7 @@ def follow(scene, xy, text: str = "walk along the path", *, seed: int = 0, files
     teller = Teller(scene, resolve_object_checkpoints(files), seed,
                      SamplerSpec("ddim", steps, guidance=guidance))
     if progress:
-        print(f"  following a {len(xy) / SCENE_FPS:.1f} s path", flush=True)
+        print(f"  following a {len(xy) / SCENE_FPS:.1f} s path", file=sys.stderr, flush=True)
     full = ground_trajectory(xy, height=teller.stand, fps=SCENE_FPS)
     motion = teller.along(full, 0, oid, teller.embed(text))
     joints, _ = story_arrays(motion)
@@ -217,7 +218,7 @@ def planned_generation(scene, text: str, opts, progress: bool = False, *, plan=N
                                          enable_compilation_cache() / "text-embeddings")
     if progress:
         for note in notes:
-            print(f"  {note}", flush=True)
+            print(f"  {note}", file=sys.stderr, flush=True)
     for warn in warns:
         warnings.warn(warn, UserWarning, stacklevel=3)
     return story_generation(room, steps, opts, progress, text=text)

@@ -33,6 +33,7 @@ import dataclasses
 import functools
 import itertools
 import json
+import sys
 from pathlib import Path
 
 import jax
@@ -711,7 +712,7 @@ def tell(scene, plan, *, seed: int = 0, files=None, steps: int = 20,
                 else f"{step.action.replace('_', ' ')} {obj['category']} {step.object}")
         report(f"step {i}/{len(plan)}: {said}", (i - 1) / len(plan))
         if progress:
-            print(f"  step {i}/{len(plan)}: {said}", flush=True)
+            print(f"  step {i}/{len(plan)}: {said}", file=sys.stderr, flush=True)
         try:
             if step.point is not None:
                 teller.walk_to_point(step.point, grid)

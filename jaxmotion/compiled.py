@@ -80,7 +80,10 @@ def cached_program(cache_dir: Path | None, name: str, fingerprint: str, build, s
     loads its executable from XLA's cache. ``fingerprint`` must change with anything else
     that changes the program (weights, sampler, versions); argument shapes and jaxmotion's
     sources are added here. A program :func:`prefetch` started loading is taken from there;
-    a program is loaded once per process.
+    a program is loaded once per process. Without a cache folder (``cache_dir=None``) the
+    program is traced and compiled in memory, and kept for the process as well (the last
+    :data:`MEMORY_PROGRAMS`), so a repeated call with the same fingerprint and shapes does not
+    trace and compile it again.
 
     The constants the traced program closes over (the networks' weights) are lifted out of it
     when they come to :data:`LIFT_BYTES` or more: the program takes them as arguments and they
@@ -92,7 +95,16 @@ def cached_program(cache_dir: Path | None, name: str, fingerprint: str, build, s
     """
     path = _artefact(cache_dir, name, fingerprint, specs)
     if path is None:
-        return _load_program(None, build, specs)
+        import jax
+
+        key = f"{name}-{_shapes_digest(fingerprint, specs)}"
+        if key not in _IN_MEMORY:
+            while len(_IN_MEMORY) >= MEMORY_PROGRAMS:
+                _IN_MEMORY.pop(next(iter(_IN_MEMORY)))
+            _IN_MEMORY[key] = jax.jit(_load_program(None, build, specs))
+        else:
+            _IN_MEMORY[key] = _IN_MEMORY.pop(key)  # the most recently used, kept longest
+        return _IN_MEMORY[key]
     if str(path) in _LOADED:
         return _LOADED[str(path)]
     pending = _PENDING.pop(str(path), None)
@@ -162,12 +174,17 @@ def when_loaded(fn):
 _PENDING: dict = {}
 #: Programs :func:`cached_program` loaded in this process, by artefact path.
 _LOADED: dict = {}
+#: Programs :func:`cached_program` traced without a cache folder, by name and fingerprint.
+_IN_MEMORY: dict = {}
+#: How many programs traced without a cache folder a process keeps.
+MEMORY_PROGRAMS = 16
 
 
 def release() -> None:
     """Drop the programs this process loaded (their executables and weights); the next call
-    of each loads it from disk again."""
+    of each loads it from disk again (or traces it again, without a cache folder)."""
     _LOADED.clear()
+    _IN_MEMORY.clear()
 
 
 def prefetched() -> tuple[str, ...]:
@@ -176,14 +193,17 @@ def prefetched() -> tuple[str, ...]:
     return tuple(_PENDING)
 
 
-def _artefact(cache_dir, name: str, fingerprint: str, specs) -> Path | None:
+def _shapes_digest(fingerprint: str, specs) -> str:
     import jax
 
+    return digest(fingerprint, code_digest(),
+                  [(s.shape, str(s.dtype)) for s in jax.tree.leaves(specs)])
+
+
+def _artefact(cache_dir, name: str, fingerprint: str, specs) -> Path | None:
     if cache_dir is None:
         return None
-    fingerprint = digest(fingerprint, code_digest(),
-                         [(s.shape, str(s.dtype)) for s in jax.tree.leaves(specs)])
-    return Path(cache_dir) / f"{name}-{fingerprint}.jaxexport"
+    return Path(cache_dir) / f"{name}-{_shapes_digest(fingerprint, specs)}.jaxexport"
 
 
 def _load_program(path: Path | None, build, specs):

@@ -339,6 +339,9 @@ def test_text_only_adm_when_no_target_is_known(ckpt, tmp_path, monkeypatch):
         return real(adm, amdm)
 
     monkeypatch.setattr(G, "load_pipeline", spy)
+    import jaxmotion.compiled as C
+
+    C.release()  # programs traced earlier in this process are kept: trace these anew
     r = jaxmotion.generate(_bare_demo(), "dance around for a while", checkpoints=folder,
                            fit=False, aot=False, **FAST)
     assert r.target_id is None and used and set(used) == {G.TEXT_ADM}

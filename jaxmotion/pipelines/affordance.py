@@ -41,8 +41,8 @@ from flax import nnx
 from jaxmotion.constants import TEXT_ENCODER
 from jaxmotion.diffusion.samplers import SamplerSpec
 
-__all__ = ["AffordancePipeline", "adm_map_one", "adm_maps_one", "off_floor", "select_motion",
-           "take_text"]
+__all__ = ["AffordancePipeline", "adm_map_one", "adm_maps_one", "off_floor", "sample_in_room",
+           "select_motion", "take_text"]
 
 
 def take_text(text, index):
@@ -538,3 +538,59 @@ def select_motion(motions, points, target, mask, anchor_first=None, brisk_pelvis
 
 def _tile(tree, b):
     return jax.tree.map(lambda x: jnp.broadcast_to(x, (b, *x.shape[1:])), tree)
+
+
+def sample_in_room(room, centre, chosen, anchor_first: bool, emb, opts, models, view, root,
+                   samplers, aot_dir, versions):
+    """``generate``'s synthesis stage with the affordance pipeline: the K motions for the
+    square at ``centre`` (``models``: :class:`jaxmotion.request.Models`; ``view``: the room
+    view's maps or None): ``(joints [K,T,22,3] in the scene frame, maps [K,N,6], (crop
+    indices, rotation, shift), excluded ids, maps drawn, motions drawn)``."""
+    import jax
+
+    from jaxmotion.compiled import cached_call, digest
+    from jaxmotion.data.crop import generate_crop, model_colors
+    from jaxmotion.grounding import object_table, same_class_others
+
+    adm_sampler, amdm_sampler = samplers
+    k, room_view = opts.samples, models.room_view
+    pick, pts, shift, rot = generate_crop(room.xyz, centre, models.spec, opts.seed)
+    colors = model_colors(room.rgb[pick])
+    # once the target is known (given, or found by the scene graph), its class mates are left out
+    excluded = (same_class_others(object_table(room), chosen)
+                if opts.object_id is not None or opts.grounding != "adm" else [])
+    n_cand = opts.adm_candidates if chosen is not None and not room_view else 1
+    n_mot = opts.motion_candidates if chosen is not None else 1
+    tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))  # noqa: E731
+    on_target = tile(room.instance[pick] == (chosen if chosen is not None else -2))
+    args = (np.asarray(root), tile(pts), tile(colors),
+            jax.tree.map(lambda a: tile(a[0]), emb), np.ones((k, models.frames), bool))
+    if room_view:  # the AMDM on the view's maps, carried to the crop (in the crop frame)
+        from jaxmotion.pipelines.affordance import AffordancePipeline
+
+        view_index, view_maps = view
+        view_in_crop = ((room.xyz[view_index] - shift) @ rot.T).astype(np.float32)
+        args = (*args, np.asarray(AffordancePipeline.carry(tile(pts), tile(view_in_crop),
+                                                           view_maps)))
+    else:
+        args = (*args, tile(np.isin(room.instance[pick], excluded)))
+    args = (*args, on_target, np.full(k, anchor_first))
+    main_adm = models.adm if chosen is not None else models.text_adm  # else: text-only maps
+
+    def build_sampler():
+        pipe = models.pipeline(main_adm)
+        main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]  # noqa: E731
+        if room_view:
+            return lambda kd, p, c, e, m, a, t, f: pipe.sample(
+                main(kd), p, c, e, m, amdm=amdm_sampler, affordance=a, target=t,
+                motion_candidates=n_mot, anchor_first=f)
+        return lambda kd, p, c, e, m, x, t, f: pipe.sample(
+            main(kd), p, c, e, m, adm=adm_sampler, amdm=amdm_sampler, exclude=x, target=t,
+            candidates=n_cand, motion_candidates=n_mot, anchor_first=f)
+
+    res = jax.device_get(cached_call(aot_dir, "sample", digest(
+        versions, adm_sampler, amdm_sampler, n_cand, n_mot, main_adm, models.amdm),
+        build_sampler, args))
+    joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
+    aff = np.asarray(res.get("affordance", np.zeros((k, len(pick), 6))), np.float32)
+    return joints, aff, (pick, rot, shift), (() if room_view else excluded), n_cand, n_mot

@@ -17,12 +17,12 @@ from typing import TYPE_CHECKING
 from jaxmotion._version import __version__
 
 _SUBMODULES = (
-    "body", "config", "constants", "data", "diffusion", "errors", "eval", "export", "generation",
+    "batch", "body", "config", "constants", "data", "diffusion", "errors", "eval", "export", "generation",
     "geometry", "grounding", "models", "motion", "options", "pipelines", "result", "scene",
     "text", "train", "viz",
 )
 
-__all__ = ["__version__", "generate", *_SUBMODULES]
+__all__ = ["__version__", "generate", "generate_batch", *_SUBMODULES]
 
 
 def generate(scene, text: str | None = None, **kwargs):
@@ -36,6 +36,17 @@ def generate(scene, text: str | None = None, **kwargs):
     from jaxmotion.generation import generate as run
 
     return run(scene, DEFAULT_TEXT if text is None else text, **kwargs)
+
+
+def generate_batch(cases, out, **kwargs):
+    """Generate every request of ``cases`` (a ``.jsonl`` file or a list of dicts with
+    ``text`` or ``plan`` and optionally ``scene``, ``object_id``, ``seed``, ``samples``,
+    ``name``) into one folder per request under ``out``, the object-centric samples of many
+    requests sampled together over every local device. See :func:`jaxmotion.batch.
+    generate_batch` for the options; returns this process's rows of ``out/summary.jsonl``."""
+    from jaxmotion.batch import generate_batch as run
+
+    return run(cases, out, **kwargs)
 
 
 if TYPE_CHECKING:  # pragma: no cover

@@ -245,6 +245,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     from jaxmotion.options import DEFAULT_TEXT, GenerateOptions
 
     t0 = time.perf_counter()
+    if args.batch is None and (args.batch_size is not None or args.coordinator is not None):
+        raise ValueError("--batch-size and --coordinator go with --batch CASES.jsonl")
     if args.checkpoints and len(args.checkpoints) not in (1, 2):
         raise ValueError("--checkpoints takes a folder, or the ADM and AMDM workdirs / files")
     ckpt = None if not args.checkpoints else (
@@ -262,6 +264,9 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         motion_candidates=args.motion_candidates, checkpoints=ckpt, num_points=args.points,
         pipeline=args.pipeline, object_checkpoints=objects, up=args.up, unit=args.unit,
         cvae_checkpoints=None if not args.cvae else tuple(args.cvae))
+    if args.batch is not None:
+        return _generate_batch(args, options, t0)
+    args.video = args.video or "mp4"
     check_outputs(out=args.out, video=None if args.video == "none" else args.video)
     if args.scene != "demo":
         from pathlib import Path
@@ -314,6 +319,47 @@ def _cmd_generate(args: argparse.Namespace) -> int:
           file=sys.stderr)
     print(summary(res, notes, warned), flush=True)
     return 0
+
+
+def _generate_batch(args: argparse.Namespace, options, t0: float) -> int:
+    """``generate --batch``: every request of the file (:mod:`jaxmotion.batch`); stdout gets
+    one JSON line with the counts and the summary's path (exit 1 when a request failed)."""
+    import os
+    import time
+
+    single = [f"--{n.replace('_', '-')}" for n in ("scene", "text", "plan", "trajectory",
+                                                  "object", "seed", "samples")
+              if getattr(args, n) not in (None, "demo")]
+    if single:
+        raise ValueError(f"{', '.join(single)}: each request of --batch gives its own (\"scene\","
+                         " \"text\", \"plan\", \"object_id\", \"seed\", \"samples\"); the "
+                         "other options apply to every request")
+    if args.coordinator is not None:
+        if args.processes is None or args.process_id is None:
+            raise ValueError("--coordinator needs --processes N and --process-id I")
+        if not 0 <= args.process_id < args.processes:
+            raise ValueError(f"--process-id must be in 0 .. {args.processes - 1}, got "
+                             f"{args.process_id}")
+        import jax
+
+        jax.distributed.initialize(args.coordinator, num_processes=args.processes,
+                                   process_id=args.process_id)
+    elif args.processes is not None or args.process_id is not None:
+        raise ValueError("--processes and --process-id go with --coordinator HOST:PORT")
+    elif os.environ.get("JAXMOTION_DISTRIBUTED") == "1":  # the cluster's environment says
+        import jax
+
+        jax.distributed.initialize()
+    from jaxmotion.batch import DEFAULT_BATCH_SIZE, generate_batch
+
+    video = None if args.video in (None, "none") else args.video
+    rows = generate_batch(args.batch, args.out, options=options, video=video,
+                          batch_size=args.batch_size or DEFAULT_BATCH_SIZE)
+    counts = {s: sum(r["status"] == s for r in rows) for s in ("done", "failed", "missing")}
+    seconds = time.perf_counter() - t0
+    print(json.dumps({"requests": len(rows), **counts, "seconds": round(seconds, 1),
+                      "summary": os.path.join(args.out, "summary.jsonl")}), flush=True)
+    return 0 if counts["failed"] == 0 and counts["missing"] == 0 else 1
 
 
 def _size_arg(text: str) -> tuple[int, int]:
@@ -669,9 +715,29 @@ def build_parser() -> argparse.ArgumentParser:
                    ".safetensors files, action-specific ones (action=sit ...) and / or an "
                    "action-agnostic one; the one for the instruction's action is used. No "
                    "cVAE weights ship with jaxmotion")
-    p.add_argument("--video", choices=("mp4", "gif", "none"), default="mp4",
-                   help="the rendered video: mp4 (default, H.264), gif, or none")
+    p.add_argument("--video", choices=("mp4", "gif", "none"), default=None,
+                   help="the rendered video: mp4 (default, H.264), gif, or none (the default "
+                   "with --batch)")
     p.add_argument("--out", required=True, help="output folder")
+    b = p.add_argument_group(
+        "batch generation", "many requests in one process: a JSON object a line with \"text\" "
+        "or \"plan\" and optionally \"scene\", \"object_id\", \"seed\", \"samples\", "
+        "\"name\"; each request gets OUT/<name>/ with the files above and summary.json, and "
+        "OUT/summary.jsonl lists them all. Finished requests are skipped when run again. The "
+        "other options apply to every request")
+    b.add_argument("--batch", default=None, metavar="CASES.jsonl",
+                   help="the requests (instead of --scene / --text / --plan / --object / "
+                   "--seed / --samples)")
+    b.add_argument("--batch-size", type=int, default=None, metavar="B",
+                   help="samples each device draws per call of the batched program (default 8)")
+    b.add_argument("--coordinator", default=None, metavar="HOST:PORT",
+                   help="several hosts: process 0's address; each process is started with the "
+                   "same arguments and its --process-id, takes every N-th request and writes "
+                   "into the shared --out (jax.distributed)")
+    b.add_argument("--processes", type=int, default=None, metavar="N",
+                   help="with --coordinator: how many processes")
+    b.add_argument("--process-id", type=int, default=None, metavar="I",
+                   help="with --coordinator: this process's rank, 0 .. N-1")
     p.set_defaults(func=_cmd_generate)
 
     p = sub.add_parser(

@@ -106,14 +106,16 @@ class Generation:
         return (f"Generation({self.text!r}, samples={k}, frames={t}, fps={self.fps:g}, "
                 f"scene={self.scene.name!r})")
 
-    def save(self, out, *, video: str | None = "mp4", bvh_sample: int = 0) -> dict[str, Path]:
+    def save(self, out, *, video: str | None = "mp4", bvh_sample: int = 0,
+             extra: dict | None = None) -> dict[str, Path]:
         """Write the outputs into folder ``out``; returns ``{name: path}``. See
         :func:`jaxmotion.export.write_generation`: ``motion.npz`` (every field),
         ``motion.bvh`` and ``motion_smplx.npz`` (AMASS-style SMPL-X; sample ``bvh_sample``),
         ``motion.glb``, ``motion.mp4`` /
         ``motion.gif`` (``video="mp4"|"gif"``, None to skip: the rendered bodies in the room)
-        and ``viewer.html``; an error or
-        an interrupt leaves no half-written file and no new empty folder."""
+        and ``viewer.html``; ``extra``: more files ``{name: text or bytes}`` written with them
+        (batch generation's ``summary.json``). An error or an interrupt leaves no half-written
+        file and no new empty folder."""
         from jaxmotion.export.folder import write_generation
 
-        return write_generation(self, out, video=video, bvh_sample=bvh_sample)
+        return write_generation(self, out, video=video, bvh_sample=bvh_sample, extra=extra)

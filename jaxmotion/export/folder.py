@@ -26,8 +26,8 @@ __all__ = ["VIDEO_KINDS", "check_output_folder", "check_outputs", "scene_heat", 
 VIDEO_KINDS = (None, "gif", "mp4")
 
 
-def write_generation(res, out, *, video: str | None = "mp4",
-                     bvh_sample: int = 0) -> dict[str, Path]:
+def write_generation(res, out, *, video: str | None = "mp4", bvh_sample: int = 0,
+                     extra: dict | None = None) -> dict[str, Path]:
     """Write the outputs into folder ``out`` (created); returns ``{name: path}``.
 
     ``motion.npz`` (every field), ``motion.bvh`` and ``motion_smplx.npz`` (sample
@@ -35,9 +35,10 @@ def write_generation(res, out, *, video: str | None = "mp4",
     write_amass_npz`), ``motion.glb`` (skinned mannequins with the room), ``motion.mp4`` /
     ``motion.gif`` (``video="mp4"|"gif"``, None to skip: the shaded mannequins in the lit
     room, 640×480 at 15 frames per second, :func:`jaxmotion.render.results.
-    render_generation`; the other files are written while it draws) and ``viewer.html``.
-    Files are built in a temporary folder and moved in at the end, so an error leaves no
-    half-written output.
+    render_generation`; the other files are written while it draws) and ``viewer.html``;
+    ``extra``: more files ``{name: text or bytes}`` (plain names, no folders). Files are
+    built in a temporary folder and moved in at the end, so an error leaves no half-written
+    output.
     """
     ids = [res.target_id, *(g["object"] for g in res.segments)]
     out = check_outputs(res.scene, ids, out=out, video=video, fit=bool(res.smplx),
@@ -51,6 +52,10 @@ def write_generation(res, out, *, video: str | None = "mp4",
     with tempfile.TemporaryDirectory(prefix=f".{out.name}.generate-", dir=parent) as tmp:
         tmp = Path(tmp)
         _write_files(res, tmp, video, bvh_sample)
+        for name, data in (extra or {}).items():
+            if Path(name).name != name or name.startswith("."):
+                raise ValueError(f"extra file name {name!r} must be a plain file name")
+            (tmp / name).write_bytes(data.encode() if isinstance(data, str) else bytes(data))
         if fresh:
             mask = os.umask(0)
             os.umask(mask)

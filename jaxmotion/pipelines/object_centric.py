@@ -356,10 +356,12 @@ class ObjectCentricPipeline:
     def sample_trajectories(self, key, points, normals, target, text_emb, betas, mask, *,
                             trajectory: SamplerSpec = DEFAULT_SPEC, motion_candidates: int = 1,
                             action=None, anchor_guidance: float = 1.0,
-                            standing_guidance: float = 1.0):
+                            standing_guidance: float = 1.0, keys=None):
         """Stage 1 of :meth:`sample`: the root trajectories ``[B, M, T, 9]`` (metres, crop
-        frame) of each crop's ``M = motion_candidates`` candidates; arguments as there."""
-        keys, action = self._candidate_keys(key, points.shape[0], motion_candidates, action)
+        frame) of each crop's ``M = motion_candidates`` candidates; arguments as there.
+        ``keys``: each candidate's own key ``[B, M]`` instead of ``key``'s splits."""
+        keys, action = self._candidate_keys(key, points.shape[0], motion_candidates, action,
+                                            keys)
 
         def one(k, p, n, t, e, bt, mk, a):
             base, null = self._conditions(p, n, t, e, bt, mk, a)
@@ -374,14 +376,14 @@ class ObjectCentricPipeline:
                               trajectories, *, completion: SamplerSpec = DEFAULT_SPEC,
                               anchor_first=None, keep_trajectory: bool = True, action=None,
                               foot_guidance: float = 1.0, avoid=None,
-                              traj_sensor_on: str = "trajectory") -> dict:
+                              traj_sensor_on: str = "trajectory", keys=None) -> dict:
         """Stage 2 of :meth:`sample`: the motions along ``trajectories [B, M, T, 9]`` (from
-        :meth:`sample_trajectories` with the same ``key``), the best of the M kept; arguments
-        and result as :meth:`sample`."""
+        :meth:`sample_trajectories` with the same ``key`` or ``keys``), the best of the M
+        kept; arguments and result as :meth:`sample`."""
         from jaxmotion.pipelines.affordance import select_motion
 
         b, m = trajectories.shape[:2]
-        keys, action = self._candidate_keys(key, b, m, action)
+        keys, action = self._candidate_keys(key, b, m, action, keys)
 
         def one(k, tr, p, n, t, e, bt, mk, a):
             base, null = self._conditions(p, n, t, e, bt, mk, a)
@@ -401,10 +403,11 @@ class ObjectCentricPipeline:
         return {"joints": joints[jnp.arange(b), best], "motion": motion[jnp.arange(b), best]}
 
     @staticmethod
-    def _candidate_keys(key, b: int, m: int, action):
+    def _candidate_keys(key, b: int, m: int, action, keys=None):
         """Each candidate's key ``[B, M]`` (split again into its two stages' keys, as
-        :meth:`sample_one` does) and the actions ``[B]``."""
-        keys = jax.random.split(key, b * int(m)).reshape(b, int(m))
+        :meth:`sample_one` does; ``keys`` when given) and the actions ``[B]``."""
+        if keys is None:
+            keys = jax.random.split(key, b * int(m)).reshape(b, int(m))
         if action is None:
             action = jnp.full((b,), UNKNOWN_ACTION, jnp.int32)
         return keys, jnp.asarray(action, jnp.int32)
@@ -467,14 +470,31 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
       ``transl``, ``betas``, scene frame; the joints are their forward kinematics, so no fit
       is needed).
     """
+    from jaxmotion.compiled import cached_call
+
+    args, crop = sampler_inputs(room, centre, chosen, anchor_first, text_emb, opts, files, root,
+                                action)
+    _, _, fingerprint, builds = _sampler_program(opts, files, versions)
+    # two programs, the stages, so that their executables load side by side (prefetch_sampler)
+    trajs = cached_call(aot_dir, PROGRAMS[0], fingerprint, builds[0], _stage_arguments(args))
+    res = jax.device_get(cached_call(aot_dir, PROGRAMS[1], fingerprint, builds[1],
+                                     _stage_arguments(args, trajs)))
+    joints, smplx = scene_outputs(res, args[5], *crop[1:])
+    return joints, crop, smplx
+
+
+def sampler_inputs(room, centre, chosen: int, anchor_first: bool, text_emb, opts, files, root,
+                   action=None):
+    """The sampling programs' arguments for one request (:func:`sample_in_room`'s, K rows:
+    :func:`_sampler_arguments`) and its crop ``(point indices, rotation, shift)``;
+    ``x_scene = x_crop @ rotation + shift``."""
     import numpy as np
 
-    from jaxmotion.compiled import cached_call
     from jaxmotion.data.crop import generate_crop
     from jaxmotion.errors import GenerateError
     from jaxmotion.text.condition import pooled_text
 
-    spec, frames, fingerprint, builds = _sampler_program(opts, files, versions)
+    spec, frames = _crop_and_frames(tuple(files))
     pick, pts, shift, rot = generate_crop(room.xyz, centre, spec, opts.seed)
     on_target = room.instance[pick] == chosen
     if not on_target.any():
@@ -485,14 +505,18 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
     args = _sampler_arguments(opts.samples, frames, root, pts, normals, on_target,
                               np.asarray(pooled_text(text_emb), np.float32)[0], anchor_first,
                               action, avoid, rot, shift)
-    # two programs, the stages, so that their executables load side by side (prefetch_sampler)
-    trajs = cached_call(aot_dir, PROGRAMS[0], fingerprint, builds[0], _stage_arguments(args))
-    res = jax.device_get(cached_call(aot_dir, PROGRAMS[1], fingerprint, builds[1],
-                                     _stage_arguments(args, trajs)))
+    return args, (pick, rot, shift)
+
+
+def scene_outputs(res, betas, rot, shift):
+    """``(joints [K, T, 22, 3], smplx)`` in the scene frame from a completion program's result
+    (joints in the crop frame, SMPL-X parameters already in the scene's)."""
+    import numpy as np
+
     joints = (np.asarray(res["joints"]) @ rot + shift).astype(np.float32)
     smplx = {n: np.asarray(res[n], np.float32) for n in ("global_orient", "body_pose", "transl")}
-    smplx["betas"] = args[5]
-    return joints, (pick, rot, shift), smplx
+    smplx["betas"] = np.asarray(betas, np.float32)
+    return joints, smplx
 
 
 def prefetch_sampler(opts, files, root, aot_dir, versions) -> bool:
@@ -532,16 +556,33 @@ def _denoiser_config(path) -> dict:
 PROGRAMS = ("sample-object-centric-trajectory", "sample-object-centric-completion")
 
 
+@functools.lru_cache(maxsize=8)
+def _crop_and_frames(files) -> tuple:
+    """The crop spec and the motions' frames of the completion weights ``files[1]``."""
+    from jaxmotion.data.crop import crop_spec_from_config
+    from jaxmotion.models.weights import read_config
+
+    run_cfg = read_config(files[1])
+    return crop_spec_from_config(run_cfg), int(run_cfg["max_frames"])
+
+
+def _in_scene(res, betas, rot, shift) -> dict:
+    """A completion's result with its SMPL-X parameters in the scene frame
+    (``x_scene = x_crop @ rot + shift``); the joints stay in the crop frame."""
+    motion = res["motion"]
+    turned = rot.T @ trajectory_frames(motion)[1]
+    scene = jnp.concatenate([motion[..., :3] @ rot + shift, matrix_to_rotation_6d(turned),
+                             motion[..., TRAJECTORY_DIM:]], axis=-1)
+    return {"joints": res["joints"], **motion_to_smplx(scene, betas)}
+
+
 def _sampler_program(opts, files, versions):
     """``(crop spec, frames, fingerprint, (build_trajectory, build_completion))`` of
     :func:`sample_in_room`'s two compiled programs for ``opts`` and the weights ``files``
     (their arguments: :func:`_stage_arguments`)."""
     from jaxmotion.compiled import digest
-    from jaxmotion.data.crop import crop_spec_from_config
-    from jaxmotion.models.weights import read_config
 
-    run_cfg = read_config(files[1])
-    spec, frames = crop_spec_from_config(run_cfg), int(run_cfg["max_frames"])
+    spec, frames = _crop_and_frames(tuple(files))
     stage = SamplerSpec("ddim", opts.steps, guidance=opts.guidance[1])
     n_mot = opts.motion_candidates
 
@@ -563,18 +604,55 @@ def _sampler_program(opts, files, versions):
             res = pipe.complete_trajectories(main(kd), p, n, t, e, b, m, trajs,
                                              completion=stage, anchor_first=f, action=a,
                                              avoid=av)
-            # the features in the scene frame (x_scene = x_crop @ rot + shift): SMPL-X's
-            motion = res["motion"]
-            turned = rot.T @ trajectory_frames(motion)[1]
-            scene = jnp.concatenate([motion[..., :3] @ rot + shift,
-                                     matrix_to_rotation_6d(turned),
-                                     motion[..., TRAJECTORY_DIM:]], axis=-1)
-            return {"joints": res["joints"], **motion_to_smplx(scene, b)}
+            return _in_scene(res, b, rot, shift)
 
         return run
 
     fingerprint = digest(versions, stage, n_mot, Path(files[0]), Path(files[1]))
     return spec, frames, fingerprint, (build_trajectory, build_completion)
+
+
+def candidate_keys(root, samples: int, motion_candidates: int):
+    """The key data ``uint32 [K, M, 2]`` of every candidate of a request whose seed's key data
+    is ``root``: those :func:`sample_in_room`'s programs draw (its second split, then one key
+    per sample and candidate), so that a batch (:func:`batch_sampler`) draws the same motions
+    as ``generate`` with that seed."""
+    import numpy as np
+
+    main = jax.random.split(jax.random.wrap_key_data(jnp.asarray(root, jnp.uint32)))[1]
+    keys = jax.random.split(main, samples * motion_candidates)
+    return np.asarray(jax.random.key_data(keys)).reshape(samples, motion_candidates, -1)
+
+
+def batch_sampler(opts, files, mesh=None):
+    """Both stages as one jitted program over rows of many requests (batch generation,
+    :mod:`jaxmotion.batch`): ``run(keys [B, M, 2], points, normals, target, text, betas, mask,
+    anchor_first, action, avoid, rotation [B, 3, 3], shift [B, 3])`` → ``{"joints", ...}`` as
+    the completion program's, each row in its own crop and scene frame. ``keys`` come from
+    :func:`candidate_keys` (the rows of one request, its seed's). ``mesh``: a 1-D
+    :class:`jax.sharding.Mesh` whose axis ``batch`` splits the rows; each device runs the
+    program on its own rows only (``shard_map``), the same program on any number of devices,
+    so a row's motion does not depend on how many there are. ``B`` must be a multiple of the
+    mesh's size."""
+    stage = SamplerSpec("ddim", opts.steps, guidance=opts.guidance[1])
+    n_mot = opts.motion_candidates
+    pipe = load_object_pipeline(str(files[0]), str(files[1]))
+
+    def run(keys, p, n, t, e, b, m, f, a, av, rot, shift):
+        keys = jax.random.wrap_key_data(keys)
+        trajs = pipe.sample_trajectories(None, p, n, t, e, b, m, trajectory=stage,
+                                         motion_candidates=n_mot, action=a, keys=keys)
+        res = pipe.complete_trajectories(None, p, n, t, e, b, m, trajs, completion=stage,
+                                         anchor_first=f, action=a, avoid=av, keys=keys)
+        return jax.vmap(_in_scene)(res, b, rot, shift)
+
+    if mesh is None:
+        return jax.jit(run)
+    from jax.sharding import PartitionSpec
+
+    rows = PartitionSpec(mesh.axis_names[0])
+    return jax.jit(jax.shard_map(run, mesh=mesh, in_specs=(rows,) * 12, out_specs=rows,
+                                 check_vma=False))
 
 
 def _stage_arguments(args, trajectories=None):

@@ -24,8 +24,9 @@ How it runs:
   sampled together: their samples are rows of one compiled program, ``batch_size`` rows per
   device, the rows sharded over the local devices (a 1-D ``jax.sharding.Mesh``, ``shard_map``:
   every device runs the same program on its own rows). Each row draws with its request's seed
-  exactly the keys ``generate`` draws, and a device's program does not depend on how many
-  devices there are, so a request's motions are the same on one device or eight. Stories,
+  exactly the keys ``generate`` draws (motions agree with ``generate``'s to float rounding,
+  which the guided steps can grow to centimetres; two host devices do not yet reproduce one
+  device's motions bit for bit). Stories,
   followed paths and the other pipelines run one request at a time in the same process.
 - Several hosts: start one process per host with :func:`jax.distributed.initialize` (the
   command line's ``--coordinator HOST:PORT --processes N --process-id I``); process ``i``

@@ -116,17 +116,13 @@ def cached_program(cache_dir: Path | None, name: str, fingerprint: str, build, s
     return program
 
 
-def prefetch(cache_dir: Path | None, name: str, fingerprint: str, specs, build=None) -> bool:
+def prefetch(cache_dir: Path | None, name: str, fingerprint: str, specs) -> bool:
     """Start loading the kept program :func:`cached_program` will be asked for (same
-    arguments) in a background thread, so that reading it, lowering it and loading its
-    executable overlap the work before it is called. A program not on disk yet is only
-    started when ``build`` is given: the thread then traces, keeps and compiles it (a first
-    run: two programs prefetched so compile side by side, each on a core, while the caller
-    grounds the request). Returns whether it started."""
+    arguments but ``build``) in a background thread, so that reading it, lowering it and
+    loading its executable overlap the work before it is called. Only a program already on
+    disk is prefetched (tracing stays on the caller's thread). Returns whether it started."""
     path = _artefact(cache_dir, name, fingerprint, specs)
-    if path is None or str(path) in _PENDING or str(path) in _LOADED:
-        return False
-    if not path.is_file() and build is None:
+    if path is None or not path.is_file() or str(path) in _PENDING or str(path) in _LOADED:
         return False
     import threading
     from concurrent.futures import Future
@@ -135,7 +131,7 @@ def prefetch(cache_dir: Path | None, name: str, fingerprint: str, specs, build=N
 
     def load():
         try:
-            future.set_result(_load_program(path, build, specs))
+            future.set_result(_load_program(path, None, specs))
         except BaseException as e:  # noqa: BLE001 - handed to the caller by cached_program
             future.set_exception(e)
 

@@ -470,19 +470,12 @@ def sample_in_room(room, centre, chosen: int, anchor_first: bool, text_emb, opts
       ``transl``, ``betas``, scene frame; the joints are their forward kinematics, so no fit
       is needed).
     """
-    import numpy as np
-
-    from jaxmotion.compiled import cached_call, prefetch, specs_of
+    from jaxmotion.compiled import cached_call
 
     args, crop = sampler_inputs(room, centre, chosen, anchor_first, text_emb, opts, files, root,
                                 action)
-    _, frames, fingerprint, builds = _sampler_program(opts, files, versions)
+    _, _, fingerprint, builds = _sampler_program(opts, files, versions)
     # two programs, the stages, so that their executables load side by side (prefetch_sampler)
-    # and, on a first run, compile side by side: the second on a thread while this one
-    # traces and compiles the first
-    trajs = np.zeros((opts.samples, opts.motion_candidates, frames, TRAJECTORY_DIM), np.float32)
-    prefetch(aot_dir, PROGRAMS[1], fingerprint, specs_of(_stage_arguments(args, trajs)),
-             builds[1])
     trajs = cached_call(aot_dir, PROGRAMS[0], fingerprint, builds[0], _stage_arguments(args))
     res = jax.device_get(cached_call(aot_dir, PROGRAMS[1], fingerprint, builds[1],
                                      _stage_arguments(args, trajs)))

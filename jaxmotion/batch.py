@@ -238,19 +238,21 @@ class _Runner:
         self.progress = progress
         self.devices = jax.local_devices()
         self.rows_per_call = batch_size * len(self.devices)
-        self.batch_size = batch_size
         self.pending: list = []  # (state, row) waiting for a call
         self.rooms: dict = {}
         self.writer = concurrent.futures.ThreadPoolExecutor(1, "jaxmotion-batch-writer")
         self.writes: list = []
         self.program = None
         self.bar = None
-        self.counts = {"done": 0, "failed": 0}
 
     def say(self, message: str) -> None:
+        """A line on stderr (above the progress bar while there is one): stdout is the
+        command's JSON line alone."""
         if self.progress:
-            (self.bar.write if self.bar is not None else
-             lambda m: print(m, file=sys.stderr, flush=True))(message)
+            if self.bar is not None:
+                self.bar.write(message, file=sys.stderr)
+            else:
+                print(message, file=sys.stderr, flush=True)
 
     def run(self, cases) -> None:
         from tqdm import tqdm
@@ -363,7 +365,7 @@ class _Runner:
         def stack(i):
             return np.stack([s.args[i][r] for s, r in full])
 
-        per_case = lambda get: np.stack([get(s) for s, _ in full])  # noqa: E731
+        per_case = lambda get: np.stack([get(s) for s, _ in full])
         inputs = (np.stack([s.keys[r] for s, r in full]), *(stack(i) for i in range(1, 10)),
                   per_case(lambda s: s.crop[1]).astype(np.float32),
                   per_case(lambda s: s.crop[2]).astype(np.float32))
@@ -414,7 +416,6 @@ class _Runner:
             res.save(self.out / case.name, video=self.video,
                      extra={"summary.json": json.dumps(row, indent=1) + "\n"})
             (self.out / ".failed" / f"{case.name}.json").unlink(missing_ok=True)
-            self.counts["done"] += 1
             self.say(f"{case.name}: {res.pipeline}, target {res.target_id}, "
                      f"{res.timings['total']:.1f} s")
         except Exception as e:  # noqa: BLE001 (recorded; the batch goes on)
@@ -431,7 +432,6 @@ class _Runner:
                "seed": case.seed, "text": case.text, "error": message}
         with atomic_open(self.out / ".failed" / f"{case.name}.json", "w") as f:
             f.write(json.dumps(row) + "\n")
-        self.counts["failed"] += 1
         self.say(f"{case.name}: failed: {message}")
 
 

@@ -104,7 +104,7 @@ def one_device(tmp_path_factory):
 def test_a_batch_writes_a_folder_per_request_and_a_summary(one_device):
     tmp, code, out, err = one_device
     assert code == 1, err  # one request refused: the exit status says so
-    line = json.loads(out.strip().splitlines()[-1])
+    line = json.loads(out)
     assert (line["requests"], line["done"], line["failed"]) == (3, 2, 1)
     rows = [json.loads(r) for r in (tmp / "one" / "summary.jsonl").read_text().splitlines()]
     assert [(r["name"], r["status"]) for r in rows] == [
@@ -154,7 +154,7 @@ def test_same_motions_on_two_devices_and_two_processes_and_a_resumed_run(one_dev
     shutil.rmtree(tmp / "two" / "walk")
     code, out, err = _done(_batch(tmp, tmp / "two"))
     assert "1 finished before (skipped)" in err
-    assert json.loads(out.strip().splitlines()[-1])["done"] == 2
+    assert json.loads(out)["done"] == 2
     np.testing.assert_array_equal(_joints(tmp / "two", "walk"), _joints(tmp / "one", "walk"))
 
 

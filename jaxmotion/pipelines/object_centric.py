@@ -631,9 +631,8 @@ def batch_sampler(opts, files, mesh=None):
     the completion program's, each row in its own crop and scene frame. ``keys`` come from
     :func:`candidate_keys` (the rows of one request, its seed's). ``mesh``: a 1-D
     :class:`jax.sharding.Mesh` whose axis ``batch`` splits the rows; each device runs the
-    program on its own rows only (``shard_map``), the same program on any number of devices,
-    so a row's motion does not depend on how many there are. ``B`` must be a multiple of the
-    mesh's size."""
+    program on its own rows only (``shard_map``). ``B`` must be a multiple of the mesh's
+    size. (Two host devices do not yet give one device's motions bit for bit.)"""
     stage = SamplerSpec("ddim", opts.steps, guidance=opts.guidance[1])
     n_mot = opts.motion_candidates
     pipe = load_object_pipeline(str(files[0]), str(files[1]))

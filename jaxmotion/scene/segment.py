@@ -307,46 +307,62 @@ def split_touching(xyz: np.ndarray, cell: float = VOXEL, step: float = 0.08,
 
     grid = np.stack([cells // width, cells % width], 1)
 
-    def stats(r):
+    def stats(members):
         """(top, area m², width m: twice the largest distance from a cell to the outside)"""
         from scipy.ndimage import distance_transform_edt
 
-        g = grid[region == r]
+        g = grid[members]
         lo = g.min(0)
         mask = np.zeros(tuple(g.max(0) - lo + 3), bool)
         mask[tuple((g - lo + 1).T)] = True
         w = 2.0 * float(distance_transform_edt(mask).max()) * cell
-        return float(np.median(top[region == r])), len(g) * cell * cell, w
+        return float(np.median(top[members])), len(g) * cell * cell, w
 
-    while True:
-        ids = np.unique(region)
-        if len(ids) == 1:
-            break
-        a, b = region[pairs[:, 0]], region[pairs[:, 1]]
-        cross = a != b
-        border: dict = {}
-        for x, y in zip(a[cross], b[cross]):
-            border[x, y] = border.get((x, y), 0) + 1
-            border[y, x] = border.get((y, x), 0) + 1
-        info = {r: stats(r) for r in ids}
-        merged = False
+    # parts, their neighbours (border lengths in cell pairs) and their figures, kept up to
+    # date as parts merge (each merge recomputes the figures of the one part that grew)
+    order = np.argsort(region, kind="stable")
+    starts = np.flatnonzero(np.r_[True, np.diff(region[order]) != 0])
+    members = {int(region[order[s]]): order[s:e]
+               for s, e in zip(starts, np.r_[starts[1:], len(order)])}
+    # nb[x][y] = [border, first]: ``first`` the first cell pair between them, which breaks
+    # ties between equal borders (the order the pairs were found in)
+    nb: dict = {r: {} for r in members}
+    a, b = region[pairs[:, 0]], region[pairs[:, 1]]
+    cross = np.flatnonzero(a != b)
+    if len(cross):
+        lo_, hi_ = np.minimum(a[cross], b[cross]), np.maximum(a[cross], b[cross])
+        uniq, first, counts = np.unique(np.stack([lo_, hi_], 1), axis=0, return_index=True,
+                                        return_counts=True)
+        for (x, y), f, c in zip(uniq.tolist(), first.tolist(), counts.tolist()):
+            nb[x][y] = [c, f]
+            nb[y][x] = [c, f]
+    info = {r: stats(m) for r, m in members.items()}
+    while len(members) > 1:
+        into = None
         # the smallest offending part first: tiny fragments, then thin parts
-        for r in sorted(ids, key=lambda r: info[r][1]):
-            nbrs = [y for (x, y) in border if x == r]
-            if not nbrs:
+        for r in sorted(members, key=lambda r: info[r][1]):
+            if not nb[r]:
                 continue
+            border = {y: c for y, (c, _) in sorted(nb[r].items(), key=lambda kv: kv[1][1])}
             h, area, w = info[r]
             if area < small:
-                into = max(nbrs, key=lambda y: border[r, y])
-            elif w <= thin and (lower := [y for y in nbrs if info[y][0] < h]):
-                into = max(lower, key=lambda y: (border[r, y], -info[y][0]))
+                into = max(border, key=lambda y: border[y])
+            elif w <= thin and (lower := [y for y in border if info[y][0] < h]):
+                into = max(lower, key=lambda y: (border[y], -info[y][0]))
             else:
                 continue
-            region[region == r] = into
-            merged = True
             break
-        if not merged:
+        if into is None:
             break
+        for y, (c, f) in nb.pop(r).items():
+            del nb[y][r]
+            if y != into:
+                old = nb[into].get(y, [0, f])
+                nb[into][y] = nb[y][into] = [old[0] + c, min(old[1], f)]
+        members[into] = np.sort(np.concatenate([members[into], members.pop(r)]))
+        region[members[into]] = into
+        del info[r]
+        info[into] = stats(members[into])
     return np.unique(region, return_inverse=True)[1][inverse]
 
 

@@ -269,3 +269,35 @@ def test_the_object_classifier_trains_and_its_numpy_forward_is_flax_s(tmp_path):
                               deterministic=True))
     np.testing.assert_allclose(clf(x), np.asarray(want), atol=1e-5)
     assert clf.categories[-1] == "object" and len(clf.categories) == clf(x).shape[1]
+
+
+def _box(lo, hi, n, rng):
+    return rng.uniform(lo, hi, (n, 3))
+
+
+def test_parts_of_one_class_on_one_footprint_are_one_object():
+    """A class-only scan that barely saw a chair's seat: the seat apart from the base and back
+    is one chair; kitchen cabinets above and below a counter gap stay two; two chairs side by
+    side stay two."""
+    from jaxmotion.scene.segment import merge_fragments
+
+    rng = np.random.default_rng(0)
+    parts = [  # (points, class)
+        (_box([0, 0, 0.0], [0.6, 0.6, 0.2], 300, rng), 5),     # chair 1: base ...
+        (_box([0, 0.5, 0.5], [0.6, 0.6, 1.0], 300, rng), 5),   # ... and back: one part
+        (_box([0.05, 0.05, 0.4], [0.55, 0.5, 0.5], 200, rng), 5),  # its seat, cut off
+        (_box([1.0, 0, 0.0], [1.6, 0.6, 1.0], 400, rng), 5),   # chair 2 beside it
+        (_box([3, 0, 0], [4, 0.6, 0.9], 400, rng), 3),         # lower cabinet
+        (_box([3, 0, 1.4], [4, 0.4, 2.1], 400, rng), 3),       # upper cabinet
+    ]
+    xyz = np.concatenate([p for p, _ in parts])
+    kind = np.concatenate([np.full(len(p), c) for p, c in parts])
+    part = np.concatenate([np.full(len(p), i) for i, (p, _) in enumerate(parts)])
+    part[part == 1] = 0  # base and back found connected
+    part = np.unique(part, return_inverse=True)[1]
+    out = merge_fragments(xyz, part, kind)
+    first = lambda i: out[sum(len(p) for p, _ in parts[:i])]
+    assert first(0) == first(1) == first(2)  # the seat joined its chair
+    assert len({first(0), first(3), first(4), first(5)}) == 4
+    # without classes (a segmentation's parts) the rule does not apply: the seat is wide
+    assert len(np.unique(merge_fragments(xyz, part))) == 5

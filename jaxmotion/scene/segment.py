@@ -50,7 +50,7 @@ __all__ = ["CEILING", "FLOOR", "FLOOR_BAND", "MIN_CONFIDENCE", "MIN_POINTS", "MI
            "find_structure", "split_touching",
            "object_features", "segment_scene", "support_surfaces"]
 
-SEGMENT_VERSION = "jm-segment-3"  # bump when the labels a room gets change (caches key on it)
+SEGMENT_VERSION = "jm-segment-4"  # bump when the labels a room gets change (caches key on it)
 FLOOR, WALL, CEILING = (STRUCTURE_IDS[k] for k in ("floor", "wall", "ceiling"))  # semantic ids
 FLOOR_BAND = 0.03  # m above z = 0 that is floor
 PLANE_TOL = 0.035  # m: a point this close to a wall / ceiling plane belongs to it
@@ -211,8 +211,12 @@ def merge_fragments(xyz: np.ndarray, instance: np.ndarray, kind=None) -> np.ndar
     within 10 cm of the footprint of a part that is neither and rises at least 10 cm higher
     (of the same ``kind [N]`` class, when given) is that part's (the largest such): an office
     chair's star base under its seat, a table's legs cut off by a scan's holes. Objects
-    standing on others (a lamp on a desk) rise above them and are kept. Ids are renumbered
-    from 0 in order."""
+    standing on others (a lamp on a desk) rise above them and are kept. With ``kind``, two
+    parts of one class whose footprints overlap by at least :data:`SAME_FOOTPRINT` of the
+    smaller one's and whose heights meet (within 10 cm) are one object too: a chair's seat
+    and its back with its base, cut apart by a scan that barely saw the seat (upper and lower
+    kitchen cabinets, a gap of half a metre between them, stay two). Ids are renumbered from
+    0 in order."""
     xyz = np.asarray(xyz, np.float64)
     ids = np.unique(instance[instance >= 0])
     if len(ids) < 2:
@@ -233,12 +237,54 @@ def merge_fragments(xyz: np.ndarray, instance: np.ndarray, kind=None) -> np.ndar
             host &= cls == cls[f]
         if host.any():
             target[f] = int(np.flatnonzero(host)[np.argmax(count[host])])
+    if cls is not None:  # one object of a class per footprint
+        target = _join_stacked(target, lo, hi, count, cls)
     roots = np.unique(target)
     new = np.full(int(ids.max()) + 1, -1)
     new[ids] = np.searchsorted(roots, target)
     out = instance.copy()
     out[instance >= 0] = new[instance[instance >= 0]]
     return out
+
+
+#: Two parts of one class whose top-view boxes overlap by this share of the smaller one's
+#: area (and whose heights meet) are one object (:func:`merge_fragments`).
+SAME_FOOTPRINT = 0.5
+
+
+def _join_stacked(target, lo, hi, count, cls) -> np.ndarray:
+    """``target`` (each part's root) with roots of one class joined where their top-view
+    boxes overlap by :data:`SAME_FOOTPRINT` of the smaller and their heights meet: each into
+    the one of more points; the boxes of joined roots grow as they join."""
+    target = target.copy()
+    roots = [int(r) for r in np.unique(target)]
+    box_lo = {r: lo[target == r].min(0) for r in roots}
+    box_hi = {r: hi[target == r].max(0) for r in roots}
+    size = {r: int(count[target == r].sum()) for r in roots}
+    joined = True
+    while joined:
+        joined = False
+        for i, a in enumerate(roots):
+            for b in roots[i + 1:]:
+                if cls[a] != cls[b]:
+                    continue
+                over = np.clip(np.minimum(box_hi[a][:2], box_hi[b][:2])
+                               - np.maximum(box_lo[a][:2], box_lo[b][:2]), 0, None).prod()
+                area = min(np.prod(box_hi[r][:2] - box_lo[r][:2]) for r in (a, b))
+                meet = (min(box_hi[a][2], box_hi[b][2])
+                        - max(box_lo[a][2], box_lo[b][2])) > -0.1
+                if area > 0 and over >= SAME_FOOTPRINT * area and meet:
+                    keep, gone = (a, b) if size[a] >= size[b] else (b, a)
+                    target[target == gone] = keep
+                    box_lo[keep] = np.minimum(box_lo[keep], box_lo[gone])
+                    box_hi[keep] = np.maximum(box_hi[keep], box_hi[gone])
+                    size[keep] += size.pop(gone)
+                    roots.remove(gone)
+                    joined = True
+                    break
+            if joined:
+                break
+    return target
 
 
 def find_instances(xyz: np.ndarray, structure: Structure, split: bool = True) -> np.ndarray:

@@ -25,9 +25,10 @@ How it runs:
   device, the rows sharded over the local devices (a 1-D ``jax.sharding.Mesh``, ``shard_map``:
   every device runs the same program on its own rows). Each row draws with its request's seed
   exactly the keys ``generate`` draws (motions agree with ``generate``'s to float rounding,
-  which the guided steps can grow to centimetres; two host devices do not yet reproduce one
-  device's motions bit for bit). Stories,
-  followed paths and the other pipelines run one request at a time in the same process.
+  which the guided steps can grow to centimetres). A row's motion does not depend on the
+  other rows of its call nor on its place there; one process per device gives one device's
+  motions bit for bit, several devices of one process agree with them to 1e-6 m (XLA's
+  partitioned program rounds the last bits differently). Stories, followed paths and the other pipelines run one request at a time in the same process.
 - Several hosts: start one process per host with :func:`jax.distributed.initialize` (the
   command line's ``--coordinator HOST:PORT --processes N --process-id I``); process ``i``
   takes requests ``i, i + N, ...``; ``OUT`` must be a folder all of them see. Process 0 writes

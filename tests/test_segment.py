@@ -271,7 +271,8 @@ def test_the_object_classifier_trains_and_its_numpy_forward_is_flax_s(tmp_path):
     assert clf.categories[-1] == "object" and len(clf.categories) == clf(x).shape[1]
 
 
-def _box(lo, hi, n, rng):
+def _filled_box(lo, hi, n, rng):
+    """Points filling the box [lo, hi]."""
     return rng.uniform(lo, hi, (n, 3))
 
 
@@ -283,12 +284,12 @@ def test_parts_of_one_class_on_one_footprint_are_one_object():
 
     rng = np.random.default_rng(0)
     parts = [  # (points, class)
-        (_box([0, 0, 0.0], [0.6, 0.6, 0.2], 300, rng), 5),     # chair 1: base ...
-        (_box([0, 0.5, 0.5], [0.6, 0.6, 1.0], 300, rng), 5),   # ... and back: one part
-        (_box([0.05, 0.05, 0.4], [0.55, 0.5, 0.5], 200, rng), 5),  # its seat, cut off
-        (_box([1.0, 0, 0.0], [1.6, 0.6, 1.0], 400, rng), 5),   # chair 2 beside it
-        (_box([3, 0, 0], [4, 0.6, 0.9], 400, rng), 3),         # lower cabinet
-        (_box([3, 0, 1.4], [4, 0.4, 2.1], 400, rng), 3),       # upper cabinet
+        (_filled_box([0, 0, 0.0], [0.6, 0.6, 0.2], 300, rng), 5),     # chair 1: base ...
+        (_filled_box([0, 0.5, 0.5], [0.6, 0.6, 1.0], 300, rng), 5),   # ... and back: one part
+        (_filled_box([0.05, 0.05, 0.4], [0.55, 0.5, 0.5], 200, rng), 5),  # its seat, cut off
+        (_filled_box([1.0, 0, 0.0], [1.6, 0.6, 1.0], 400, rng), 5),   # chair 2 beside it
+        (_filled_box([3, 0, 0], [4, 0.6, 0.9], 400, rng), 3),         # lower cabinet
+        (_filled_box([3, 0, 1.4], [4, 0.4, 2.1], 400, rng), 3),       # upper cabinet
     ]
     xyz = np.concatenate([p for p, _ in parts])
     kind = np.concatenate([np.full(len(p), c) for p, c in parts])

@@ -14,7 +14,9 @@ seat on the couch", "lie on the bed", "walk to the table", "walk to the table an
 chair". Per motion: refused (the message), the target and whether its category is of the kind
 asked, a teleport (a joint > 9 m/s or the pelvis > 3 m/s: :func:`jaxmotion.eval.plausibility`),
 the geometric judge (:func:`jaxmotion.eval.action_judge.judge_on_object`: seated, lying or
-standing near the target at the end), the share of frames with a joint within 4 cm of another
+standing near the target at the end), the share of frames with a joint inside another object's
+box (:func:`jaxmotion.eval.furniture.furniture_frames`, the protocol's furniture metric; a sit's
+or lie's own target aside), the stricter share of frames with a joint within 4 cm of another
 object's points (doors, windows, pictures, curtains, rugs and structure aside), the lowest
 foot. Printed per motion and in total; ``--json`` keeps the rows.
 """
@@ -70,6 +72,7 @@ def strip(path: Path, tmp: Path) -> Path:
 def run_room(path: Path, name: str, seeds) -> list[dict]:
     import jaxmotion
     from jaxmotion.eval.action_judge import judge_on_object
+    from jaxmotion.eval.furniture import furniture_frames
     from jaxmotion.eval.plausibility import plausibility
     from jaxmotion.scene.demo import load_scene_arg
 
@@ -101,7 +104,10 @@ def run_room(path: Path, name: str, seeds) -> list[dict]:
                        category=cats.get(tid), right_kind=cats.get(tid) in kinds,
                        teleport=bool(pl["teleport"][0]), pelvis_end=round(float(j[-1, 0, 2]), 3),
                        lowest_foot=round(float(j[:, FEET, 2].min()), 3),
-                       near_4cm=round(near_share(j, res.scene, tid), 3))
+                       near_4cm=round(near_share(j, res.scene, tid), 3),
+                       in_furniture=round(float(furniture_frames(
+                           j[None], res.scene.objects,
+                           () if action == "walk" or tid is None else (tid,))[0]), 3))
             if tid is not None:
                 o = next(o for o in res.scene.objects if o["id"] == tid)
                 pts = res.scene.xyz[res.scene.instance == tid]
@@ -112,8 +118,8 @@ def run_room(path: Path, name: str, seeds) -> list[dict]:
             rows.append(row)
             print(f"  {text!r} seed {seed}: {cats.get(tid)} {tid} (kind ok: {row['right_kind']})"
                   f", teleport {row['teleport']}, judge {row.get('judge')}, pelvis end "
-                  f"{row['pelvis_end']:.2f} m, near other furniture {100 * row['near_4cm']:.0f} %"
-                  f" of frames, lowest foot {100 * row['lowest_foot']:.1f} cm", flush=True)
+                  f"{row['pelvis_end']:.2f} m, inside furniture {100 * row['in_furniture']:.0f} % / "
+                  f"near other furniture {100 * row['near_4cm']:.0f} % of frames, lowest foot {100 * row['lowest_foot']:.1f} cm", flush=True)
     return rows
 
 
@@ -139,8 +145,9 @@ def main(argv=None) -> int:
           f"{sum(r['right_kind'] for r in done)} on an object of the kind asked; "
           f"sit / lie done on the kind asked (judge): "
           f"{sum(bool(r.get('judge')) and r['right_kind'] for r in acts)} of {len(acts)}; "
-          f"frames near other furniture: {100 * np.mean([r['near_4cm'] for r in done]):.1f} % "
-          "(mean)" if done else f"\n{len(rows)} runs, all refused")
+          f"frames inside furniture (boxes): {100 * np.mean([r['in_furniture'] for r in done]):.1f} %"
+          f", near other furniture (4 cm of its points): "
+          f"{100 * np.mean([r['near_4cm'] for r in done]):.1f} % (means)" if done else f"\n{len(rows)} runs, all refused")
     if args.json:
         args.json.write_text("\n".join(json.dumps(r) for r in rows) + "\n")
     return 0

@@ -302,3 +302,39 @@ def test_parts_of_one_class_on_one_footprint_are_one_object():
     assert len({first(0), first(3), first(4), first(5)}) == 4
     # without classes (a segmentation's parts) the rule does not apply: the seat is wide
     assert len(np.unique(merge_fragments(xyz, part))) == 5
+
+
+def test_a_thick_real_wall_is_wall_and_what_stands_against_it_keeps_its_back():
+    """A scanned room whose walls are 12 cm thick with noise, with a window recess behind one
+    and a soffit under the ceiling: none of that is an object (before, the band along the
+    walls joined everything standing by them into one room-sized 'object'); a cabinet against
+    the wall keeps its back, a shelf on the wall is still a thing, a chair is a chair."""
+    rng = np.random.default_rng(5)
+    room = [rng.uniform([0, 0, 0], [5, 4, 0], (8000, 3)),          # floor
+            rng.uniform([0, 0, 2.6], [5, 4, 2.6], (6000, 3))]      # ceiling
+    for axis, at in ((0, 0.0), (0, 5.0), (1, 0.0), (1, 4.0)):       # four walls
+        w = rng.uniform([0, 0, 0], [5, 4, 2.6], (6000, 3))
+        w[:, axis] = at + rng.normal(0, 0.04, 6000).clip(-0.12, 0.12)  # thick, noisy
+        room.append(w)
+    recess = rng.uniform([1.5, 4.0, 0.9], [3.0, 4.35, 2.0], (800, 3))  # behind the y = 4 wall
+    soffit = rng.uniform([0, 0, 2.3], [5, 0.5, 2.6], (1500, 3))        # hangs along y = 0
+    cabinet = _filled_box([3.6, 3.5, 0.0], [4.6, 3.97, 0.9], 1500, rng)  # back on the wall
+    shelf = _filled_box([0.0, 1.5, 1.2], [0.35, 2.3, 1.5], 600, rng)  # on the x = 0 wall
+    chair = _filled_box([2.0, 1.5, 0.0], [2.5, 2.0, 0.9], 900, rng)
+    xyz = np.concatenate([*room, recess, soffit, cabinet, shelf, chair])
+    start = np.cumsum([0] + [len(p) for p in (*room, recess, soffit, cabinet, shelf, chair)])
+    part = {name: slice(start[len(room) + i], start[len(room) + i + 1])
+            for i, name in enumerate(("recess", "soffit", "cabinet", "shelf", "chair"))}
+    st = seg.find_structure(xyz)
+    inst = seg.find_instances(xyz, st)
+    objects = [np.flatnonzero(inst == i) for i in range(inst.max() + 1)]
+    # every object is one of the three things (no wall band, recess or soffit object)
+    for sel in objects:
+        size = xyz[sel].max(0) - xyz[sel].min(0)
+        assert size[:2].max() < 1.3, f"an object of {np.round(size, 2)} m"
+    for name in ("cabinet", "shelf", "chair"):
+        ids, counts = np.unique(inst[part[name]], return_counts=True)
+        assert ids[counts.argmax()] >= 0 and counts.max() >= 0.7 * counts.sum(), name
+    assert (inst[part["recess"]] < 0).all() and (inst[part["soffit"]] < 0).mean() > 0.95
+    cab = objects[np.bincount(inst[part["cabinet"]][inst[part["cabinet"]] >= 0]).argmax()]
+    assert xyz[cab, 1].max() > 3.9  # its back, in the wall's band, is its own

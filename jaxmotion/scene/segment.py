@@ -9,8 +9,12 @@ everything after it (grounding, planning, the pipelines, the viewer, the video) 
    :data:`FLOOR_BAND` of z = 0), the ceiling (a horizontal plane at the top holding at least
    2 % of the points, above 1.8 m) and the walls: vertical planes (RANSAC, two points and the
    vertical) that rise from near the floor to near the top of the room over at least 0.8 m of
-   length; their points within :data:`PLANE_TOL` are structure, not objects. Partial scans
-   simply have fewer of them.
+   length; their points within :data:`PLANE_TOL` are structure, not objects. A real wall is
+   thicker than that (plaster, skirting, a scan's drift and double surfaces, window
+   recesses): of the points within :data:`WALL_BAND` in front of it or :data:`BEHIND_WALL`
+   behind it, those that furniture standing against the wall does not
+   claim are the wall's too (:func:`find_instances`); under a found ceiling, what hangs within 0.6 m of it (no lower
+   than :data:`HANGING`) is the ceiling's. Partial scans simply have fewer of them.
 2. **instances** (:func:`find_components`): the remaining points above the floor, grouped by
    connectivity on a :data:`VOXEL` grid (26 neighbours); groups under :data:`MIN_POINTS`
    points are clutter (no object).
@@ -43,17 +47,20 @@ import numpy as np
 
 from jaxmotion.constants import STRUCTURE_IDS
 
-__all__ = ["CEILING", "FLOOR", "FLOOR_BAND", "MIN_CONFIDENCE", "MIN_POINTS", "MIN_SIDE", "MIN_TOP",
-           "PLANE_TOL",
+__all__ = ["CEILING", "BEHIND_WALL", "FLOOR", "FLOOR_BAND", "MIN_CONFIDENCE", "MIN_POINTS", "MIN_SIDE", "MIN_TOP",
+           "PLANE_TOL", "WALL_BAND",
            "SEGMENT_VERSION", "VOXEL", "WALL", "Discovery", "Structure", "discover",
            "find_components", "find_instances", "split_groups",
            "find_structure", "split_touching",
            "object_features", "segment_scene", "support_surfaces"]
 
-SEGMENT_VERSION = "jm-segment-4"  # bump when the labels a room gets change (caches key on it)
+SEGMENT_VERSION = "jm-segment-5"  # bump when the labels a room gets change (caches key on it)
 FLOOR, WALL, CEILING = (STRUCTURE_IDS[k] for k in ("floor", "wall", "ceiling"))  # semantic ids
 FLOOR_BAND = 0.03  # m above z = 0 that is floor
 PLANE_TOL = 0.035  # m: a point this close to a wall / ceiling plane belongs to it
+WALL_BAND = 0.15  # m: ... and, once the wall is found, a point this close to it may be (its band)
+BEHIND_WALL = 0.5  # m: ... and behind it (a window's recess, the wall's far face)
+HANGING = 2.2  # m: no lower than this is the band under a found ceiling left to it
 VOXEL = 0.05  # m: connectivity grid of the instances
 MIN_POINTS = 40  # points of the smallest object
 MIN_CONFIDENCE = 0.35  # below this the classifier's category is not used ("object")
@@ -69,11 +76,14 @@ _LIE = (0.25, 0.85)  # m: ... lies on (at least 1.5 m long and 0.6 m wide)
 class Structure:
     """Floor, walls and ceiling of a levelled room: ``label [N]`` (0 other, :data:`FLOOR`,
     :data:`WALL`, :data:`CEILING`), the wall planes ``walls [W, 3]`` as ``(nx, ny, d)`` with
-    ``x nx + y ny = d``, and ``top`` (the ceiling's height, or the room's 99th percentile z)."""
+    ``x nx + y ny = d``, ``top`` (the ceiling's height, or the room's 99th percentile z) and
+    ``near_wall [N]`` (bool: other points within :data:`WALL_BAND` in front of a wall or
+    :data:`BEHIND_WALL` behind it, along its length; None: not known)."""
 
     label: np.ndarray
     walls: np.ndarray
     top: float
+    near_wall: np.ndarray | None = None
 
 
 def find_structure(xyz: np.ndarray, seed: int = 0, max_walls: int = 12) -> Structure:
@@ -97,7 +107,7 @@ def find_structure(xyz: np.ndarray, seed: int = 0, max_walls: int = 12) -> Struc
                 top = float(np.median(xyz[on, 2]))
     # walls: vertical planes from near the floor to near the top
     cand = np.flatnonzero((label == 0) & (xyz[:, 2] > 0.1))
-    walls = []
+    walls, spans = [], []
     for _ in range(max_walls):
         if len(cand) < 0.01 * n or len(cand) < 50:
             break
@@ -131,9 +141,30 @@ def find_structure(xyz: np.ndarray, seed: int = 0, max_walls: int = 12) -> Struc
         if rises and long_enough:
             label[inl] = WALL
             walls.append((nb[0], nb[1], ob))
+            spans.append((np.percentile(along, 1), np.percentile(along, 99)))
+            # the rest of a thick wall's band is not tried again as another wall
+            inl = cand[np.abs(xyz[cand, :2] @ nb - ob) <= WALL_BAND]
         # tried either way: a plane that is not a wall is not tried again
         cand = np.setdiff1d(cand, inl, assume_unique=True)
-    return Structure(label, np.asarray(walls, np.float64).reshape(-1, 3), top)
+    # a real wall is not a plane to a centimetre (plaster, skirting, a scan's drift and its
+    # double surfaces): the points within WALL_BAND of a wall along its length are marked;
+    # find_instances tells the wall's own from the furniture standing against it
+    near = np.zeros(n, bool)
+    rest = np.flatnonzero((label == 0) & (xyz[:, 2] > FLOOR_BAND))
+    floor = xyz[label == FLOOR, :2] if (label == FLOOR).any() else xyz[:, :2]
+    for (nx, ny, d), (a0, a1) in zip(walls, spans):
+        p = xyz[rest, :2]
+        along = p @ np.array([-ny, nx])
+        inward = 1.0 if np.median(floor @ np.array([nx, ny])) >= d else -1.0
+        depth = (p @ np.array([nx, ny]) - d) * inward  # > 0 on the room's side
+        near[rest[(depth <= WALL_BAND) & (depth >= -BEHIND_WALL) & (along >= a0 - 0.1)
+                  & (along <= a1 + 0.1)]] = True
+    # what hangs just under the ceiling (soffits, beams, lights, curtain boxes) is the room's,
+    # not furniture a body meets: left to the ceiling in a room of full height
+    if (label == CEILING).any():
+        label[(label == 0) & (xyz[:, 2] > max(HANGING, top - 0.6))] = CEILING
+    return Structure(label, np.asarray(walls, np.float64).reshape(-1, 3), top,
+                     near & (label == 0))
 
 
 def find_components(xyz: np.ndarray, mask: np.ndarray, voxel: float = VOXEL,
@@ -296,7 +327,11 @@ def find_instances(xyz: np.ndarray, structure: Structure, split: bool = True) ->
     from scipy.spatial import cKDTree
 
     xyz = np.asarray(xyz, np.float64)
-    instance = find_components(xyz, (structure.label == 0) & (xyz[:, 2] > FLOOR_BAND))
+    free = (structure.label == 0) & (xyz[:, 2] > FLOOR_BAND)
+    instance = find_components(xyz, free)
+    if structure.near_wall is not None and structure.near_wall.any():
+        free &= ~_wall_residue(xyz, instance, structure.near_wall)
+        instance = find_components(xyz, free)  # pieces joined only through a wall come apart
     if split:  # objects that touch, told apart from above
         instance = split_groups(xyz, instance)
     instance = merge_fragments(xyz, instance)
@@ -315,6 +350,34 @@ def find_instances(xyz: np.ndarray, structure: Structure, split: bool = True) ->
     inside = np.all((xyz[cand] >= lo[owner] - 0.04) & (xyz[cand] <= hi[owner] + 0.04), axis=1)
     instance[cand[inside]] = owner[inside]
     return instance
+
+
+def _wall_residue(xyz: np.ndarray, group: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """``[N]`` bool: the points of the connected groups ``group [N]`` that belong to a wall.
+
+    ``near [N]``: the points near a wall (:attr:`Structure.near_wall`). A group lying in the
+    band (fewer than a tenth of its points off it) is the wall's: the wall's own surface, or
+    something flat on it (a picture, a door, a window; the classifier's wall-mounted classes,
+    which a body does not meet). A group standing out of the band keeps the band points within
+    the band's width (and 4 cm) of its other points (its back against the wall); its other
+    band points are the wall's (a wall's surface running on beside it, which otherwise joins
+    whatever stands along the wall into one object)."""
+    from scipy.spatial import cKDTree
+
+    out = np.zeros(len(xyz), bool)
+    for g in np.unique(group[group >= 0]):
+        sel = np.flatnonzero(group == g)
+        on = near[sel]
+        if not on.any():
+            continue
+        off = sel[~on]
+        if len(off) < 0.1 * len(sel):
+            out[sel] = True
+            continue
+        band = sel[on]
+        dist, _ = cKDTree(xyz[off]).query(xyz[band], distance_upper_bound=WALL_BAND + 0.04)
+        out[band[~np.isfinite(dist)]] = True
+    return out
 
 
 def split_touching(xyz: np.ndarray, cell: float = VOXEL, step: float = 0.08,

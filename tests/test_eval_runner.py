@@ -278,14 +278,18 @@ def test_runner_with_a_cvae_row(tiny_runs, tmp_path):
         assert np.isfinite(m["summary"][k]["mean"]), k
     again = evaluate(out["data"], [spec], **kw)["models"]["h"]["motions"]["joints"]
     np.testing.assert_array_equal(joints, again)
-    cfg = load_config("configs/cvae.py", [f"data_dir={out['data']}", "preset=tiny", "steps=1",
-                                          "eval_every=0", "crop.num_points=128",
-                                          "model.num_points=128",
-                                          f"workdir={tmp_path / 'cvae128'}"])
-    train(cfg, get_task(cfg))
+    # the same weights, saved as a cVAE of 128-point crops (its config is what is checked)
+    from safetensors.numpy import save
+
+    from jaxmotion.models.weights import load_weights
+
+    tensors, saved = load_weights(tmp_path / "cvae" / "model.safetensors")
+    saved["model"]["num_points"] = saved["crop"]["num_points"] = 128
+    (tmp_path / "cvae128.safetensors").write_bytes(save(tensors, metadata={
+        "config": json.dumps(saved), "format": "jaxmotion-weights-1"}))
     with pytest.raises(ValueError, match="reads 128 points"):
         evaluate(out["data"], [parse_model(f"h={root / 'adm'},{root / 'amdm'},"
-                                           f"cvae={tmp_path / 'cvae128'}")], **kw)
+                                           f"cvae={tmp_path / 'cvae128.safetensors'}")], **kw)
 
 
 def test_backbone_from_an_adm_weights_file(tiny_runs):

@@ -784,26 +784,46 @@ def _cvae_sampler(spec: ModelSpec, cases: list[dict], encoder):
     :class:`ValueError` names a cVAE whose crops or length differ from the cases'."""
     import jax
 
-    from jaxmotion.pipelines.cvae import CVAEPipeline
+    from jaxmotion.models.weights import read_config
     from jaxmotion.text import pad_tokens
 
-    cv = CVAEPipeline.from_file(spec.cvae)
+    saved = read_config(spec.cvae)  # checked before the weights are read
     points, frames = cases[0]["points"].shape[0], cases[0]["mask"].shape[0]
-    want = int(cv.run_config["model"]["num_points"])
-    if want != points or cv.frames != frames:
+    want, makes = int(saved["model"]["num_points"]), int(saved["max_frames"])
+    if want != points or makes != frames:
         raise ValueError(f"--model {spec.name!r}: the cVAE {spec.cvae} reads {want} points "
-                         f"and makes {cv.frames} frames, but the cases (from the AMDM's config) "
+                         f"and makes {makes} frames, but the cases (from the AMDM's config) "
                          f"have {points} points and {frames} frames; give an AMDM with the "
                          f"cVAE's crop.num_points and max_frames")
+    cv, run = _cvae_program(*_file_key(spec.cvae))
     tokens, token_mask = pad_tokens(encoder.token_states([c["text"] for c in cases]),
                                     int(cv.run_config["model"]["text_tokens"]), encoder.dim)
-    run = jax.jit(lambda key, p, c, t, tm, b, m: cv.sample(key, p, c, t, tm, b, m, 1)
-                  ["joints"][:, 0])
 
     def sample(key, x, idx):
         return np.asarray(jax.device_get(run(key, x["points"], x["colors"], tokens[idx],
                                              token_mask[idx], x["betas"], x["mask"])))
     return sample
+
+
+def _file_key(path) -> tuple[str, int]:
+    """A weights file (or workdir) as a cache key: its resolved path and modification time."""
+    from jaxmotion.models.weights import weights_path
+
+    src = weights_path(path).resolve()
+    return str(src), src.stat().st_mtime_ns if src.is_file() else 0
+
+
+@functools.lru_cache(maxsize=4)
+def _cvae_program(path: str, mtime: int):
+    """``(CVAEPipeline, jitted one-motion-per-row sampler)`` of a cVAE weights file, kept for
+    the process (an evaluation run twice, or two models with one cVAE, compile it once)."""
+    import jax
+
+    from jaxmotion.pipelines.cvae import CVAEPipeline
+
+    cv = CVAEPipeline.from_file(path)
+    return cv, jax.jit(lambda key, p, c, t, tm, b, m: cv.sample(key, p, c, t, tm, b, m, 1)
+                       ["joints"][:, 0])
 
 
 def load_eval_cases(data_dir, split, amdm_config, num_cases, seed, regions, adm_config=None,

@@ -1,6 +1,6 @@
 """Batch generation's throughput against a loop of single ``generate`` calls.
 
-    python benchmarks/batch.py [--requests 16] [--loop 4] [--devices 1 2] [--batch-size 8]
+    python benchmarks/batch.py [--requests 16] [--loop 4] [--devices 1 2] [--batch-size B]
                                [--json OUT]
 
 Target (issue 49): the batch path ≥ 3× the motions per second of a loop of single
@@ -56,7 +56,8 @@ def main(argv=None) -> int:
     ap.add_argument("--requests", type=int, default=16)
     ap.add_argument("--loop", type=int, default=4, help="single generate commands timed")
     ap.add_argument("--devices", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--batch-size", type=int, default=8)
+    ap.add_argument("--batch-size", type=int, default=None,
+                    help="rows per device per call (default: the command's own default)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     cache = tempfile.mkdtemp(prefix="jm-batch-bench-")
@@ -68,10 +69,11 @@ def main(argv=None) -> int:
     # warm the cache: one single generate, one batch run per device count
     _cli(["--scene", "demo", "--text", TEXTS[0], "--video", "none", "--out",
           str(tmp / "warm")], _env(cache))
+    size = [] if args.batch_size is None else ["--batch-size", str(args.batch_size)]
     (tmp / "cases.jsonl").write_text("".join(json.dumps(c) + "\n" for c in cases))
     for d in args.devices:
-        _cli(["--batch", str(tmp / "cases.jsonl"), "--out", str(tmp / f"warm-{d}"),
-              "--batch-size", str(args.batch_size)], _env(cache, d))
+        _cli(["--batch", str(tmp / "cases.jsonl"), "--out", str(tmp / f"warm-{d}"), *size],
+             _env(cache, d))
 
     # 1. a loop of commands
     seconds = [_cli(["--scene", "demo", "--text", c["text"], "--seed", str(c["seed"]),
@@ -101,7 +103,7 @@ def main(argv=None) -> int:
     # 3. batch, per device count
     for d in args.devices:
         s = _cli(["--batch", str(tmp / "cases.jsonl"), "--out", str(tmp / f"batch-{d}"),
-                  "--batch-size", str(args.batch_size)], _env(cache, d))
+                  *size], _env(cache, d))
         figures[f"batch_{d}dev_per_s"] = len(cases) / s
         ratio = figures[f"batch_{d}dev_per_s"] / figures["loop_per_s"]
         figures[f"batch_{d}dev_vs_loop"] = ratio

@@ -21,7 +21,9 @@ How it runs:
 - Every request is prepared as ``generate`` prepares it (room loaded once per file, target
   grounded, refusals said before sampling); a refused request is recorded, the others go on.
 - Requests sampled by the object-centric pipeline (a target found: the usual case) are
-  sampled together: their samples are rows of one compiled program, ``batch_size`` rows per
+  sampled together (unless the process has a single CPU device and no ``batch_size`` is
+  given: there each is sampled by ``generate``'s own programs, which is faster on a CPU):
+  their samples are rows of one compiled program, ``batch_size`` rows per
   device, the rows sharded over the local devices (a 1-D ``jax.sharding.Mesh``, ``shard_map``:
   every device runs the same program on its own rows). Each row draws with its request's seed
   exactly the keys ``generate`` draws (motions agree with ``generate``'s to float rounding,
@@ -56,7 +58,8 @@ __all__ = ["CASE_FIELDS", "BatchCase", "generate_batch", "read_cases"]
 #: The fields a request (one line of the cases file) may have.
 CASE_FIELDS = ("name", "scene", "text", "plan", "object_id", "seed", "samples")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$")
-#: Rows (samples) each device samples in one call of the batched program.
+#: Rows (samples) each device samples in one call of the batched program, where rows are
+#: batched (see :func:`generate_batch`'s ``batch_size``).
 DEFAULT_BATCH_SIZE = 8
 
 
@@ -156,7 +159,7 @@ def _existing(value: str, base: Path | None, where: str, field: str) -> str:
 
 
 def generate_batch(cases, out, *, options=None, video: str | None = None,
-                   batch_size: int = DEFAULT_BATCH_SIZE, progress: bool = True,
+                   batch_size: int | None = None, progress: bool = True,
                    **overrides) -> list[dict]:
     """Generate every request of ``cases`` into folder ``out`` (see the module's docstring).
 
@@ -167,7 +170,12 @@ def generate_batch(cases, out, *, options=None, video: str | None = None,
         fields as keyword arguments); a request's ``seed``, ``samples`` and ``object_id``
         replace those.
       video: ``"mp4"`` / ``"gif"`` to render each request's video too (None: none).
-      batch_size: rows each device samples per call (memory grows with it).
+      batch_size: rows each device samples per call of the batched program (memory grows
+        with it). None: :data:`DEFAULT_BATCH_SIZE`, except in a process with a single CPU
+        device, where each request is sampled by ``generate``'s own programs (the same
+        motions as ``generate``, bit for bit): on a CPU a batched call costs as much per row
+        as single requests or more (measured on 2 cores: 0.9 s a request in calls of 8 rows,
+        0.6 s one at a time), so there the gain is the warm process alone.
       progress: a progress bar and one line per request on stderr.
     Returns:
       This process's rows of ``summary.jsonl`` (its requests, finished before included).
@@ -181,7 +189,8 @@ def generate_batch(cases, out, *, options=None, video: str | None = None,
     from jaxmotion.request import check_models
 
     opts = GenerateOptions.merged(options, **overrides)
-    batch_size = check_positive_int("batch_size", batch_size, 1, 1024)
+    if batch_size is not None:
+        batch_size = check_positive_int("batch_size", batch_size, 1, 1024)
     todo = read_cases(cases)
     out = Path(out)
     if out.exists() and not out.is_dir():
@@ -197,7 +206,10 @@ def generate_batch(cases, out, *, options=None, video: str | None = None,
     runner.say(f"{len(todo)} request(s)" + (f", {len(mine)} for process {rank} of {ranks}"
                                              if ranks > 1 else "")
                + (f", {len(finished)} finished before (skipped)" if finished else "")
-               + f"; {len(runner.devices)} device(s), {batch_size} row(s) each per call")
+               + (f"; one at a time through generate's programs (one CPU device)"
+                  if runner.one_at_a_time else
+                  f"; {len(runner.devices)} device(s), {runner.rows_per_call // len(runner.devices)}"
+                  " row(s) each per call"))
     runner.run(left)
     rows = [_read_row(out, c) for c in mine]
     if ranks > 1:  # every process done before the summary is gathered
@@ -230,7 +242,7 @@ class _Runner:
     ``batch_size`` rows per device, finishes and writes each request as its rows come back
     (files written on a second thread while the next rows sample)."""
 
-    def __init__(self, opts, models, out: Path, video, batch_size: int, progress: bool):
+    def __init__(self, opts, models, out: Path, video, batch_size: int | None, progress: bool):
         import concurrent.futures
 
         import jax
@@ -238,7 +250,9 @@ class _Runner:
         self.opts, self.models, self.out, self.video = opts, models, out, video
         self.progress = progress
         self.devices = jax.local_devices()
-        self.rows_per_call = batch_size * len(self.devices)
+        self.one_at_a_time = (batch_size is None and len(self.devices) == 1
+                              and self.devices[0].platform == "cpu")
+        self.rows_per_call = (batch_size or DEFAULT_BATCH_SIZE) * len(self.devices)
         self.pending: list = []  # (state, row) waiting for a call
         self.rooms: dict = {}
         self.writer = concurrent.futures.ThreadPoolExecutor(1, "jaxmotion-batch-writer")
@@ -312,7 +326,7 @@ class _Runner:
                     return
                 prepared = prepare(room, check_text(case.text), opts, self.models, False)
                 state = _State(case, opts, prepared, caught, notes, t0)
-                if prepared.pipeline != "object-centric":
+                if prepared.pipeline != "object-centric" or self.one_at_a_time:
                     self._write(state, finish(prepared, *sample(prepared)))
                     return
             except GenerateError as e:

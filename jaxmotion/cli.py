@@ -350,11 +350,11 @@ def _generate_batch(args: argparse.Namespace, options, t0: float) -> int:
         import jax
 
         jax.distributed.initialize()
-    from jaxmotion.batch import DEFAULT_BATCH_SIZE, generate_batch
+    from jaxmotion.batch import generate_batch
 
     video = None if args.video in (None, "none") else args.video
     rows = generate_batch(args.batch, args.out, options=options, video=video,
-                          batch_size=args.batch_size or DEFAULT_BATCH_SIZE)
+                          batch_size=args.batch_size)
     counts = {s: sum(r["status"] == s for r in rows) for s in ("done", "failed", "missing")}
     seconds = time.perf_counter() - t0
     print(json.dumps({"requests": len(rows), **counts, "seconds": round(seconds, 1),
@@ -729,7 +729,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the requests (instead of --scene / --text / --plan / --object / "
                    "--seed / --samples)")
     b.add_argument("--batch-size", type=int, default=None, metavar="B",
-                   help="samples each device draws per call of the batched program (default 8)")
+                   help="samples each device draws per call of the batched program (default: "
+                   "8; with a single CPU device, each request by generate's own programs, "
+                   "which is faster there)")
     b.add_argument("--coordinator", default=None, metavar="HOST:PORT",
                    help="several hosts: process 0's address; each process is started with the "
                    "same arguments and its --process-id, takes every N-th request and writes "

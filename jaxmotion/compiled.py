@@ -67,7 +67,9 @@ def specs_of(args):
     """``args`` as ``jax.ShapeDtypeStruct`` leaves (the shapes a program is kept for)."""
     import jax
 
-    return jax.tree.map(lambda a: jax.ShapeDtypeStruct(np.shape(a), np.asarray(a).dtype), args)
+    # an array's own dtype: np.asarray of a device array would wait for it and copy it over
+    return jax.tree.map(lambda a: jax.ShapeDtypeStruct(
+        np.shape(a), a.dtype if hasattr(a, "dtype") else np.asarray(a).dtype), args)
 
 
 def cached_program(cache_dir: Path | None, name: str, fingerprint: str, build, specs):

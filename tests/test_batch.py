@@ -169,3 +169,19 @@ def test_single_request_options_do_not_mix_with_batch(tmp_path):
     assert main([*base, "--coordinator", "127.0.0.1:1"]) == 2
     assert main(["generate", "--batch-size", "4", "--out", str(tmp_path / "o")]) == 2
     assert not (tmp_path / "o").exists()
+
+
+def test_one_cpu_device_samples_each_request_as_generate_does(tmp_path):
+    """Without ``batch_size``, a process with one CPU device samples each request through
+    ``generate``'s own programs: the same motions as ``jaxmotion.generate``, bit for bit."""
+    import jax
+
+    import jaxmotion
+    from jaxmotion.batch import generate_batch
+
+    assert len(jax.local_devices()) == 1 and jax.local_devices()[0].platform == "cpu"
+    rows = generate_batch([{"text": "walk to the table", "seed": 3, "name": "w"}],
+                          tmp_path / "out", progress=False, steps=4)
+    assert rows[0]["status"] == "done"
+    want = jaxmotion.generate("demo", "walk to the table", seed=3, steps=4)
+    np.testing.assert_array_equal(_joints(tmp_path / "out", "w"), want.joints)

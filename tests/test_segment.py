@@ -338,3 +338,33 @@ def test_a_thick_real_wall_is_wall_and_what_stands_against_it_keeps_its_back():
     assert (inst[part["recess"]] < 0).all() and (inst[part["soffit"]] < 0).mean() > 0.95
     cab = objects[np.bincount(inst[part["cabinet"]][inst[part["cabinet"]] >= 0]).argmax()]
     assert xyz[cab, 1].max() > 3.9  # its back, in the wall's band, is its own
+
+
+def test_a_doubtful_seat_name_without_a_seat_is_an_object():
+    """A classifier that calls every object a sofa, unsure (0.45): the low box with a seat
+    height top stays a sofa, the cabinet with no surface to sit on is an "object" (and
+    "sit on the sofa" can no longer end standing at it); sure (0.9), the name is kept."""
+    from jaxmotion.scene import Scene
+
+    rng = np.random.default_rng(4)
+    floor = rng.uniform([-1, -1, 0], [4, 3, 0], (6000, 3))
+    seat = _box([0.0, 0.0, 0.0], [1.6, 0.8, 0.45], 3000, rng)
+    cabinet = _box([2.5, 1.5, 0.0], [3.0, 2.0, 1.0], 3000, rng)
+    room = Scene(np.concatenate([floor, seat, cabinet]))
+
+    class Unsure:
+        categories = ("sofa", "chair", "object")
+
+        def __init__(self, p):
+            self.p = p
+
+        def __call__(self, feats):
+            rest = (1 - self.p) / 2
+            return np.tile([self.p, rest, rest], (len(feats), 1))
+
+    def names(p):
+        out, _ = seg.segment_scene(room, classifier=Unsure(p))
+        return sorted((round(o["bbox_max"][2], 1), o["category"]) for o in out.objects)
+
+    assert names(0.45) == [(0.4, "sofa"), (1.0, "object")]
+    assert names(0.9) == [(0.4, "sofa"), (1.0, "sofa")]

@@ -27,7 +27,10 @@ everything after it (grounding, planning, the pipelines, the viewer, the video) 
    ``jaxmotion/assets/objects.safetensors``) names it, with its probability as the object's
    ``confidence``; below :data:`MIN_CONFIDENCE`, or for a piece lower than :data:`MIN_TOP` or
    narrower than :data:`MIN_SIDE` (a fragment of a bed frame, a skirting board; doors, windows
-   and pictures are thin and only need the height), the category is ``"object"``.
+   and pictures are thin and only need the height), the category is ``"object"``; so is a
+   seat or bed name below :data:`SURE_SEAT` on an object with no surface to sit or lie on
+   (step 4: the geometry contradicts a doubtful name, and "sit on the sofa" would end
+   standing at it).
 4. **affordances** (:func:`support_surfaces`): a roughly flat surface 0.35–0.65 m high with
    room for a body is a seat, a long flat one 0.3–0.8 m high a place to lie: they are recorded
    as ``surface_height`` and ``affords`` (``["sit"]``, ``["sit", "lie"]``), so that "sit" and
@@ -47,14 +50,14 @@ import numpy as np
 
 from jaxmotion.constants import STRUCTURE_IDS
 
-__all__ = ["CEILING", "BEHIND_WALL", "FLOOR", "FLOOR_BAND", "MIN_CONFIDENCE", "MIN_POINTS", "MIN_SIDE", "MIN_TOP",
+__all__ = ["CEILING", "BEHIND_WALL", "FLOOR", "FLOOR_BAND", "MIN_CONFIDENCE", "SURE_SEAT", "MIN_POINTS", "MIN_SIDE", "MIN_TOP",
            "PLANE_TOL", "WALL_BAND",
            "SEGMENT_VERSION", "VOXEL", "WALL", "Discovery", "Structure", "discover",
            "find_components", "find_instances", "split_groups",
            "find_structure", "split_touching",
            "object_features", "segment_scene", "support_surfaces"]
 
-SEGMENT_VERSION = "jm-segment-5"  # bump when the labels a room gets change (caches key on it)
+SEGMENT_VERSION = "jm-segment-6"  # bump when the labels a room gets change (caches key on it)
 FLOOR, WALL, CEILING = (STRUCTURE_IDS[k] for k in ("floor", "wall", "ceiling"))  # semantic ids
 FLOOR_BAND = 0.03  # m above z = 0 that is floor
 PLANE_TOL = 0.035  # m: a point this close to a wall / ceiling plane belongs to it
@@ -64,6 +67,7 @@ HANGING = 2.2  # m: no lower than this is the band under a found ceiling left to
 VOXEL = 0.05  # m: connectivity grid of the instances
 MIN_POINTS = 40  # points of the smallest object
 MIN_CONFIDENCE = 0.35  # below this the classifier's category is not used ("object")
+SURE_SEAT = 0.5  # below this a seat or bed name needs a surface to sit or lie on (affords)
 MIN_TOP, MIN_SIDE = 0.3, 0.15  # m: lower, or narrower, than any furniture (a bed frame's sliver)
 NUM_FEATURES = 28
 _SAMPLE = 20_000
@@ -603,6 +607,7 @@ def segment_scene(scene, *, seed: int = 0, classifier=None):
         (:func:`jaxmotion.models.object_classifier.load_object_classifier`).
     Returns ``(scene, notes)``.
     """
+    from jaxmotion.scene.furniture import SEAT_CATEGORIES
     from jaxmotion.scene.objects import category_ids
 
     xyz = np.asarray(scene.xyz, np.float64)
@@ -630,12 +635,15 @@ def segment_scene(scene, *, seed: int = 0, classifier=None):
             cat = "object"
         else:
             named += 1
-        semantic[sel] = ids.get(cat, -1)
         pts = xyz[sel]
+        surfaces = support_surfaces(pts, normal[sel])
+        if cat in SEAT_CATEGORIES and conf < SURE_SEAT and not surfaces.get("affords"):
+            cat = "object"  # a doubtful seat or bed name that its surfaces contradict
+            named -= 1
+        semantic[sel] = ids.get(cat, -1)
         obj = {"id": i, "category": cat, "bbox_min": pts.min(0).tolist(),
                "bbox_max": pts.max(0).tolist(), "confidence": round(conf, 3),
-               "points": len(sel), "source": "segment",
-               **support_surfaces(pts, normal[sel])}
+               "points": len(sel), "source": "segment", **surfaces}
         objects.append(obj)
     notes = (f"objects found in the unlabelled room: {count} ({named} named by the shape "
              f"classifier; floor, {len(structure.walls)} wall plane(s)"

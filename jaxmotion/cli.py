@@ -355,6 +355,13 @@ def _generate_batch(args: argparse.Namespace, options, t0: float) -> int:
     video = None if args.video in (None, "none") else args.video
     rows = generate_batch(args.batch, args.out, options=options, video=video,
                           batch_size=args.batch_size)
+    if args.coordinator is not None or os.environ.get("JAXMOTION_DISTRIBUTED") == "1":
+        import jax
+
+        # the processes leave together, just after generate_batch's last barrier: left to the
+        # interpreter's exit, the shutdown barrier waited (and aborted process 0 after its
+        # 300 s) on a process slow to reach its exit handlers on a loaded machine
+        jax.distributed.shutdown()
     counts = {s: sum(r["status"] == s for r in rows) for s in ("done", "failed", "missing")}
     seconds = time.perf_counter() - t0
     print(json.dumps({"requests": len(rows), **counts, "seconds": round(seconds, 1),

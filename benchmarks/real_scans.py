@@ -118,8 +118,10 @@ def run_room(path: Path, name: str, seeds) -> list[dict]:
             rows.append(row)
             print(f"  {text!r} seed {seed}: {cats.get(tid)} {tid} (kind ok: {row['right_kind']})"
                   f", teleport {row['teleport']}, judge {row.get('judge')}, pelvis end "
-                  f"{row['pelvis_end']:.2f} m, inside furniture {100 * row['in_furniture']:.0f} % / "
-                  f"near other furniture {100 * row['near_4cm']:.0f} % of frames, lowest foot {100 * row['lowest_foot']:.1f} cm", flush=True)
+                  f"{row['pelvis_end']:.2f} m, inside furniture "
+                  f"{100 * row['in_furniture']:.0f} % / near other furniture "
+                  f"{100 * row['near_4cm']:.0f} % of frames, lowest foot "
+                  f"{100 * row['lowest_foot']:.1f} cm", flush=True)
     return rows
 
 
@@ -145,9 +147,10 @@ def main(argv=None) -> int:
           f"{sum(r['right_kind'] for r in done)} on an object of the kind asked; "
           f"sit / lie done on the kind asked (judge): "
           f"{sum(bool(r.get('judge')) and r['right_kind'] for r in acts)} of {len(acts)}; "
-          f"frames inside furniture (boxes): {100 * np.mean([r['in_furniture'] for r in done]):.1f} %"
-          f", near other furniture (4 cm of its points): "
-          f"{100 * np.mean([r['near_4cm'] for r in done]):.1f} % (means)" if done else f"\n{len(rows)} runs, all refused")
+          f"frames inside furniture (boxes): "
+          f"{100 * np.mean([r['in_furniture'] for r in done]):.1f} %, near other furniture "
+          f"(4 cm of its points): {100 * np.mean([r['near_4cm'] for r in done]):.1f} % (means)"
+          if done else f"\n{len(rows)} runs, all refused")
     if args.json:
         args.json.write_text("\n".join(json.dumps(r) for r in rows) + "\n")
     return 0

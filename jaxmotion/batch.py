@@ -30,7 +30,8 @@ How it runs:
   which the guided steps can grow to centimetres). A row's motion does not depend on the
   other rows of its call nor on its place there; one process per device gives one device's
   motions bit for bit, several devices of one process agree with them to 1e-6 m (XLA's
-  partitioned program rounds the last bits differently). Stories, followed paths and the other pipelines run one request at a time in the same process.
+  partitioned program rounds the last bits differently). Stories, followed paths and the
+  other pipelines run one request at a time in the same process.
 - Several hosts: start one process per host with :func:`jax.distributed.initialize` (the
   command line's ``--coordinator HOST:PORT --processes N --process-id I``); process ``i``
   takes requests ``i, i + N, ...``; ``OUT`` must be a folder all of them see. Process 0 writes
@@ -206,10 +207,10 @@ def generate_batch(cases, out, *, options=None, video: str | None = None,
     runner.say(f"{len(todo)} request(s)" + (f", {len(mine)} for process {rank} of {ranks}"
                                              if ranks > 1 else "")
                + (f", {len(finished)} finished before (skipped)" if finished else "")
-               + (f"; one at a time through generate's programs (one CPU device)"
+               + ("; one at a time through generate's programs (one CPU device)"
                   if runner.one_at_a_time else
-                  f"; {len(runner.devices)} device(s), {runner.rows_per_call // len(runner.devices)}"
-                  " row(s) each per call"))
+                  f"; {len(runner.devices)} device(s), "
+                  f"{runner.rows_per_call // len(runner.devices)} row(s) each per call"))
     runner.run(left)
     rows = [_read_row(out, c) for c in mine]
     if ranks > 1:  # every process done before the summary is gathered

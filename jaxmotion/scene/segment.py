@@ -12,9 +12,10 @@ everything after it (grounding, planning, the pipelines, the viewer, the video) 
    length; their points within :data:`PLANE_TOL` are structure, not objects. A real wall is
    thicker than that (plaster, skirting, a scan's drift and double surfaces, window
    recesses): of the points within :data:`WALL_BAND` in front of it or :data:`BEHIND_WALL`
-   behind it, those that furniture standing against the wall does not
-   claim are the wall's too (:func:`find_instances`); under a found ceiling, what hangs within 0.6 m of it (no lower
-   than :data:`HANGING`) is the ceiling's. Partial scans simply have fewer of them.
+   behind it, those that furniture standing against the wall does not claim are the wall's
+   too (:func:`find_instances`); under a found ceiling, what hangs within
+   :data:`HANGING_BAND` of it (no lower than :data:`HANGING`) is the ceiling's. Partial scans
+   simply have fewer of them.
 2. **instances** (:func:`find_components`): the remaining points above the floor, grouped by
    connectivity on a :data:`VOXEL` grid (26 neighbours); groups under :data:`MIN_POINTS`
    points are clutter (no object).
@@ -50,9 +51,9 @@ import numpy as np
 
 from jaxmotion.constants import STRUCTURE_IDS
 
-__all__ = ["CEILING", "BEHIND_WALL", "FLOOR", "FLOOR_BAND", "MIN_CONFIDENCE", "SURE_SEAT", "MIN_POINTS", "MIN_SIDE", "MIN_TOP",
-           "PLANE_TOL", "WALL_BAND",
-           "SEGMENT_VERSION", "VOXEL", "WALL", "Discovery", "Structure", "discover",
+__all__ = ["BEHIND_WALL", "CEILING", "FLOOR", "FLOOR_BAND", "HANGING", "HANGING_BAND",
+           "MIN_CONFIDENCE", "MIN_POINTS", "MIN_SIDE", "MIN_TOP", "PLANE_TOL", "SURE_SEAT",
+           "WALL_BAND", "SEGMENT_VERSION", "VOXEL", "WALL", "Discovery", "Structure", "discover",
            "find_components", "find_instances", "split_groups",
            "find_structure", "split_touching",
            "object_features", "segment_scene", "support_surfaces"]
@@ -63,7 +64,8 @@ FLOOR_BAND = 0.03  # m above z = 0 that is floor
 PLANE_TOL = 0.035  # m: a point this close to a wall / ceiling plane belongs to it
 WALL_BAND = 0.15  # m: ... and, once the wall is found, a point this close to it may be (its band)
 BEHIND_WALL = 0.5  # m: ... and behind it (a window's recess, the wall's far face)
-HANGING = 2.2  # m: no lower than this is the band under a found ceiling left to it
+HANGING_BAND = 0.6  # m under a found ceiling: what hangs there is the ceiling's ...
+HANGING = 2.2  # m: ... but never lower than this
 VOXEL = 0.05  # m: connectivity grid of the instances
 MIN_POINTS = 40  # points of the smallest object
 MIN_CONFIDENCE = 0.35  # below this the classifier's category is not used ("object")
@@ -151,8 +153,9 @@ def find_structure(xyz: np.ndarray, seed: int = 0, max_walls: int = 12) -> Struc
         # tried either way: a plane that is not a wall is not tried again
         cand = np.setdiff1d(cand, inl, assume_unique=True)
     # a real wall is not a plane to a centimetre (plaster, skirting, a scan's drift and its
-    # double surfaces): the points within WALL_BAND of a wall along its length are marked;
-    # find_instances tells the wall's own from the furniture standing against it
+    # double surfaces, window recesses): the points within WALL_BAND in front of a wall or
+    # BEHIND_WALL behind it, along its length, are marked; find_instances tells the wall's
+    # own from the furniture standing against it
     near = np.zeros(n, bool)
     rest = np.flatnonzero((label == 0) & (xyz[:, 2] > FLOOR_BAND))
     floor = xyz[label == FLOOR, :2] if (label == FLOOR).any() else xyz[:, :2]
@@ -166,7 +169,7 @@ def find_structure(xyz: np.ndarray, seed: int = 0, max_walls: int = 12) -> Struc
     # what hangs just under the ceiling (soffits, beams, lights, curtain boxes) is the room's,
     # not furniture a body meets: left to the ceiling in a room of full height
     if (label == CEILING).any():
-        label[(label == 0) & (xyz[:, 2] > max(HANGING, top - 0.6))] = CEILING
+        label[(label == 0) & (xyz[:, 2] > max(HANGING, top - HANGING_BAND))] = CEILING
     return Structure(label, np.asarray(walls, np.float64).reshape(-1, 3), top,
                      near & (label == 0))
 

@@ -10,7 +10,8 @@ in it, a sentence embedding and a body shape:
    frame, :mod:`jaxmotion.motion.representation`); for sit, stand up and lie, anchor guidance
    (:mod:`jaxmotion.diffusion.anchor_guidance`) steers its pelvis over the target's support
    surface at the anchor frame, and for every action its standing and walking frames to the
-   body's walking height;
+   body's walking height; then those frames are moved out of the furniture and walls
+   (:mod:`jaxmotion.diffusion.clearance`: the pelvis a body's half width from them);
 3. the **completion model** samples the whole motion (trajectory + 21 body rotations) given
    that trajectory, one token per frame built from it and from the **trajectory sensor**
    (a 2 m cube per frame at the root, turned with it, :func:`trajectory_sensors`); foot
@@ -35,7 +36,12 @@ import jax.numpy as jnp
 
 from jaxmotion.constants import ACTION_CLASSES, SCENE_FPS, UNKNOWN_ACTION
 from jaxmotion.diffusion import foot_guidance as foot_module
-from jaxmotion.diffusion.anchor_guidance import make_anchor_refiner, make_join_refiner
+from jaxmotion.diffusion.anchor_guidance import (
+    make_anchor_refiner,
+    make_join_refiner,
+    standing_height,
+)
+from jaxmotion.diffusion.clearance import STANDING_SLACK, clear_path, free_frames
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.rotations import matrix_to_rotation_6d
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
@@ -165,7 +171,7 @@ class ObjectCentricPipeline:
                    keep_trajectory: bool = True, action=None,
                    anchor_guidance: float = 1.0, standing_guidance: float = 1.0,
                    foot_guidance: float = 1.0, prefix=None, prefix_frames=None,
-                   traj_sensor_on: str = "trajectory") -> dict:
+                   traj_sensor_on: str = "trajectory", clearance: bool = True) -> dict:
         """One motion in one crop (jit / vmap it).
 
         Args:
@@ -193,6 +199,8 @@ class ObjectCentricPipeline:
           prefix, prefix_frames: ``[T, 135]`` motion features (crop frame) and ``[T]`` bool:
             the frames of ``prefix`` that are given (inpainted in both stages: the previous
             step's last frames when motions are joined); None: none.
+          clearance: the trajectory's standing and walking frames are moved out of the
+            furniture (:mod:`jaxmotion.diffusion.clearance`; False: the model's own path).
           traj_sensor_on: where a completion model with ``traj_sensor`` places the
             trajectory sensor: ``"trajectory"``, on the stage-1 trajectory once (the default:
             the same scores for half the sampling time, docs/results.md, "The trajectory
@@ -207,14 +215,17 @@ class ObjectCentricPipeline:
         base, null = self._conditions(points, normals, target_mask, text, betas, mask, action)
         traj = self._trajectory(k_traj, base, null, points, normals, target_mask, betas, mask,
                                 trajectory_spec, anchor_guidance, standing_guidance, prefix,
-                                prefix_frames)
+                                prefix_frames, clearance)
         return self._complete(k_comp, base, null, points, normals, traj, betas, completion_spec,
                               keep_trajectory, prefix, prefix_frames, foot_guidance,
                               traj_sensor_on)
 
     def _trajectory(self, key, base, null, points, normals, target_mask, betas, mask, spec,
-                    anchor_guidance, standing_guidance, prefix, prefix_frames):
-        """Stage 1: the root trajectory ``[T, 9]`` (metres, crop frame)."""
+                    anchor_guidance, standing_guidance, prefix, prefix_frames,
+                    clearance: bool = True):
+        """Stage 1: the root trajectory ``[T, 9]`` (metres, crop frame); with ``clearance``
+        its standing and walking frames moved out of the furniture
+        (:func:`jaxmotion.diffusion.clearance.clear_path`)."""
         t_mean, t_std = self.traj_stats
         nt = mask.shape[0]
 
@@ -236,7 +247,14 @@ class ObjectCentricPipeline:
             refine = join if refine is None else (lambda x, t, a=refine: a(join(x, t), t))
         x = spec.run(key, traj_denoise, self.traj_schedule, shape, base, {**base, **null},
                      refine, known_mask=known, known_values=values)
-        return x[0] * t_std + t_mean
+        traj = x[0] * t_std + t_mean
+        if clearance:
+            action = base["action"][0]
+            weight = free_frames(mask, action, prefix_frames)
+            standing = traj[:, 2] > standing_height(betas) - STANDING_SLACK
+            traj = traj.at[:, :2].set(clear_path(traj[:, :2], points, target_mask, action,
+                                                 weight, standing))
+        return traj
 
     def complete_one(self, key, points, normals, target_mask, text, betas, trajectory, mask, *,
                      spec: SamplerSpec = DEFAULT_SPEC, action=None, prefix=None,
@@ -319,7 +337,7 @@ class ObjectCentricPipeline:
                keep_trajectory: bool = True, action=None,
                anchor_guidance: float = 1.0, standing_guidance: float = 1.0,
                foot_guidance: float = 1.0, avoid=None,
-               traj_sensor_on: str = "trajectory") -> dict:
+               traj_sensor_on: str = "trajectory", clearance: bool = True) -> dict:
         """Motions for a batch of crops, the best of ``motion_candidates`` each: the two stages
         :meth:`sample_trajectories` then :meth:`complete_trajectories` (one program, or two
         that load side by side as ``generate``'s do; the same motions).
@@ -332,7 +350,7 @@ class ObjectCentricPipeline:
           candidates: never a teleporting one while another is smooth; of those near enough
           the target at the anchor frame, the one whose feet slide, hover or sink in the
           fewest frames); keep_trajectory, anchor_guidance, standing_guidance,
-          foot_guidance, traj_sensor_on: as
+          foot_guidance, traj_sensor_on, clearance: as
           :meth:`sample_one`; action: ``[B]`` int indices into ``ACTION_CLASSES`` (None:
           unknown); avoid: ``[B, N]`` bool or None, the points a body must keep out of
           (furniture): among the plausible candidates, those touching them in the fewest
@@ -345,7 +363,8 @@ class ObjectCentricPipeline:
                                          trajectory=trajectory,
                                          motion_candidates=motion_candidates, action=action,
                                          anchor_guidance=anchor_guidance,
-                                         standing_guidance=standing_guidance)
+                                         standing_guidance=standing_guidance,
+                                         clearance=clearance)
         return self.complete_trajectories(key, points, normals, target, text_emb, betas, mask,
                                           trajs, completion=completion,
                                           anchor_first=anchor_first,
@@ -356,7 +375,8 @@ class ObjectCentricPipeline:
     def sample_trajectories(self, key, points, normals, target, text_emb, betas, mask, *,
                             trajectory: SamplerSpec = DEFAULT_SPEC, motion_candidates: int = 1,
                             action=None, anchor_guidance: float = 1.0,
-                            standing_guidance: float = 1.0, keys=None):
+                            standing_guidance: float = 1.0, keys=None,
+                            clearance: bool = True):
         """Stage 1 of :meth:`sample`: the root trajectories ``[B, M, T, 9]`` (metres, crop
         frame) of each crop's ``M = motion_candidates`` candidates; arguments as there.
         ``keys``: each candidate's own key ``[B, M]`` instead of ``key``'s splits."""
@@ -366,7 +386,8 @@ class ObjectCentricPipeline:
         def one(k, p, n, t, e, bt, mk, a):
             base, null = self._conditions(p, n, t, e, bt, mk, a)
             return self._trajectory(jax.random.split(k)[0], base, null, p, n, t, bt, mk,
-                                    trajectory, anchor_guidance, standing_guidance, None, None)
+                                    trajectory, anchor_guidance, standing_guidance, None, None,
+                                    clearance)
 
         per_candidate = jax.vmap(one, in_axes=(0, None, None, None, None, None, None, None))
         return jax.vmap(per_candidate)(keys, points, normals, target, text_emb, betas, mask,
@@ -586,7 +607,7 @@ def _sampler_program(opts, files, versions):
     stage = SamplerSpec("ddim", opts.steps, guidance=opts.guidance[1])
     n_mot = opts.motion_candidates
 
-    main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]  # noqa: E731
+    main = lambda kd: jax.random.split(jax.random.wrap_key_data(kd))[1]
 
     def build_trajectory():
         pipe = load_object_pipeline(str(files[0]), str(files[1]))

@@ -20,8 +20,8 @@ frame a body stands or walks in keeps a horizontal distance from the room's obst
   target (the :data:`~.anchor_guidance.HOLD` frames nearest it, then a linear taper over
   :data:`~.anchor_guidance.TAPER`); a walk's end too, when anchor guidance stopped it in
   other furniture (it moves to the nearest free place, which stays within reach of its
-  target unless the furniture fills all of it); frames held by inpainting (a prefix joined to the previous
-  motion) never move;
+  target unless the furniture fills all of it); frames held by inpainting (a prefix joined
+  to the previous motion) never move;
 - how: :data:`ITERATIONS` rounds of "move each frame's pelvis that overlaps an obstacle
   :data:`STEP` of the way to the nearest free place (:func:`free_places`: a grid of
   :data:`CELL` over the crop, clear and on the floor), then smooth the displacement over
@@ -108,16 +108,6 @@ def _overlap(xy, points_xy, radii):
     return jnp.max(jnp.where(radii[None] > 0, radii[None] - d, -jnp.inf), axis=1)
 
 
-def _shifted(grid, k: int, fill):
-    """``{(dx, dy): grid shifted so that cell (i, j) holds cell (i + dx, j + dy)}`` for every
-    offset within ``k`` cells, ``fill`` beyond the edge."""
-    g = grid.shape[0]
-    pad = [(k, k), (k, k)] + [(0, 0)] * (grid.ndim - 2)
-    padded = jnp.pad(grid, pad, constant_values=fill)
-    return {(dx, dy): padded[k + dx:k + dx + g, k + dy:k + dy + g]
-            for dx in range(-k, k + 1) for dy in range(-k, k + 1)}
-
-
 def free_places(points, radii):
     """The :data:`CELL` grid over the crop (:data:`GRID` cells a side, centred on its points,
     each point counted at its cell's centre): ``(origin [2], overlap [G, G], goal [G, G, 2])``:
@@ -133,36 +123,41 @@ def free_places(points, radii):
     rad = jnp.zeros((GRID, GRID)).at[u[:, 0], u[:, 1]].max(jnp.where(ok, radii, 0.0))
     on_floor = jnp.zeros((GRID, GRID)).at[u[:, 0], u[:, 1]].max(
         (ok & (points[:, 2] < LOW)).astype(jnp.float32))
+    cells = jnp.arange(GRID)
+    # the overlap: every cell's largest (radius + half a cell - distance) over the occupied
+    # cells within reach, in one gather over the offsets (half a cell wider: a point counts at
+    # its cell's centre, up to that far from itself)
     k = math.ceil((RADIUS + CELL / 2) / CELL - 1e-6)
-    over = jnp.zeros((GRID, GRID))
-    for (dx, dy), r in _shifted(rad, k, 0.0).items():
-        # half a cell wider: a point counts at its cell's centre, up to that far from itself
-        over = jnp.maximum(over, jnp.where(r > 0, r + CELL / 2 - CELL * (dx * dx + dy * dy)
-                                           ** 0.5, 0.0))
+    off = jnp.stack(jnp.meshgrid(jnp.arange(-k, k + 1), jnp.arange(-k, k + 1),
+                                 indexing="ij"), -1).reshape(-1, 2)
+    padded = jnp.pad(rad, k)
+    near = padded[cells[None, :, None] + k + off[:, 0, None, None],
+                  cells[None, None, :] + k + off[:, 1, None, None]]  # [K, G, G]
+    reach = CELL * jnp.linalg.norm(off.astype(jnp.float32), axis=-1)[:, None, None]
+    over = jnp.max(jnp.where(near > 0, near + CELL / 2 - reach, 0.0), axis=0)
+    over = jnp.maximum(over, 0.0)
     f = int(FLOOR_GAP / CELL)
-    floor = jnp.zeros((GRID, GRID), bool)
-    for (dx, dy), fl in _shifted(on_floor, f, 0.0).items():
-        if dx * dx + dy * dy <= f * f:
-            floor = floor | (fl > 0)
-    centres = origin + CELL * jnp.stack(jnp.meshgrid(jnp.arange(GRID), jnp.arange(GRID),
-                                                     indexing="ij"), -1).astype(jnp.float32)
+    floor = jax.lax.reduce_window(on_floor, 0.0, jax.lax.max, (2 * f + 1, 2 * f + 1), (1, 1),
+                                  "SAME") > 0
+    centres = origin + CELL * jnp.stack(jnp.meshgrid(cells, cells, indexing="ij"),
+                                        -1).astype(jnp.float32)
     free = (over <= 0) & floor
     goal = jnp.where(free[..., None], centres, jnp.inf)
-    step = 1 << (GRID - 1).bit_length()
-    while step >= 1:  # jump flooding: each cell takes the nearest seed its neighbours know
-        step //= 2
-        best = jnp.sum((goal - centres) ** 2, -1)
-        padded = jnp.pad(goal, [(step, step), (step, step), (0, 0)], constant_values=jnp.inf)
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                i, j = step + dx * step, step + dy * step
-                cand = padded[i:i + GRID, j:j + GRID]
-                d = jnp.sum((cand - centres) ** 2, -1)
-                better = d < best
-                goal = jnp.where(better[..., None], cand, goal)
-                best = jnp.where(better, d, best)
-        if step == 1:
-            break
+    nbr = jnp.stack(jnp.meshgrid(jnp.arange(-1, 2), jnp.arange(-1, 2), indexing="ij"),
+                    -1).reshape(-1, 2)
+    rounds = (GRID - 1).bit_length()
+
+    def flood(r, goal):  # jump flooding: each cell takes the nearest seed its neighbours know
+        step = jnp.right_shift(1 << (rounds - 1), r)
+        i = cells[None, :, None] + step * nbr[:, 0, None, None]
+        j = cells[None, None, :] + step * nbr[:, 1, None, None]
+        inside = (i >= 0) & (i < GRID) & (j >= 0) & (j < GRID)
+        cand = goal[jnp.clip(i, 0, GRID - 1), jnp.clip(j, 0, GRID - 1)]  # [9, G, G, 2]
+        d = jnp.where(inside, jnp.sum((cand - centres[None]) ** 2, -1), jnp.inf)
+        best = jnp.argmin(d, axis=0)
+        return jnp.take_along_axis(cand, best[None, ..., None], axis=0)[0]
+
+    goal = jax.lax.fori_loop(0, rounds, flood, goal)
     goal = jnp.where(jnp.isfinite(goal), goal, centres)  # no free place: nowhere to go
     return origin, over, goal
 
@@ -207,10 +202,13 @@ def clear_path(xy, points, target_mask, action, weight, standing=None) -> jnp.nd
     the module docstring."""
     radii = _radii(points, target_mask, action)
     weight = jnp.asarray(weight, jnp.float32)
-    origin, over, goal = free_places(points, radii)
-    if standing is not None:  # the grids without the target, for the other frames
-        _, over_o, goal_o = free_places(points, jnp.where(jnp.asarray(target_mask, bool), 0.0,
-                                                          radii))
+    if standing is None:
+        origin, over, goal = free_places(points, radii)
+    else:  # and the grids without the target, for the other frames: one program for both
+        other = jnp.where(jnp.asarray(target_mask, bool), 0.0, radii)
+        origin, overs, goals = jax.vmap(free_places, in_axes=(None, 0))(
+            points, jnp.stack([radii, other]))
+        origin, over, goal, over_o, goal_o = origin[0], overs[0], goals[0], overs[1], goals[1]
         standing = jnp.asarray(standing, bool)
 
     def round_(delta, _):

@@ -42,6 +42,7 @@ from jaxmotion.diffusion.anchor_guidance import (
     standing_height,
 )
 from jaxmotion.diffusion.clearance import STANDING_SLACK, clear_path, free_frames
+from jaxmotion.diffusion.seated_turn import seated_turn
 from jaxmotion.diffusion.samplers import SamplerSpec
 from jaxmotion.geometry.rotations import matrix_to_rotation_6d
 from jaxmotion.geometry.sensors import environment_sensor, target_sensor, trajectory_sensor
@@ -225,7 +226,8 @@ class ObjectCentricPipeline:
                     clearance: bool = True):
         """Stage 1: the root trajectory ``[T, 9]`` (metres, crop frame); with ``clearance``
         its standing and walking frames moved out of the furniture
-        (:func:`jaxmotion.diffusion.clearance.clear_path`)."""
+        (:func:`jaxmotion.diffusion.clearance.clear_path`) and a seated body's legs turned
+        towards free floor (:func:`jaxmotion.diffusion.seated_turn.seated_turn`)."""
         t_mean, t_std = self.traj_stats
         nt = mask.shape[0]
 
@@ -254,6 +256,7 @@ class ObjectCentricPipeline:
             standing = traj[:, 2] > standing_height(betas) - STANDING_SLACK
             traj = traj.at[:, :2].set(clear_path(traj[:, :2], points, target_mask, action,
                                                  weight, standing))
+            traj, _ = seated_turn(traj, points, target_mask, mask, action, prefix_frames)
         return traj
 
     def complete_one(self, key, points, normals, target_mask, text, betas, trajectory, mask, *,

@@ -55,16 +55,52 @@ def _brute_loss(features, betas, mask, action):
                 floor += (low / F.FLOOR_SCALE) ** 2
     sink = sum(max(-h[t, f] - F.SINK_TOLERANCE, 0.0) ** 2 for t in range(len(j)) if mask[t]
                for f in range(feet.shape[1])) / F.FLOOR_SCALE ** 2 / F.SINK_FRAMES
-    return slide + floor / max(mask.sum(), 1) + sink
+    fast = 0.0
+    for t in range(len(j) - 1):
+        if mask[t] and mask[t + 1]:
+            for f in range(feet.shape[1]):
+                speed = np.linalg.norm(feet[t + 1, f] - feet[t, f]) * 30.0
+                fast += max(speed - F.FAST_SPEED, 0.0) ** 2 / F.FAST_SCALE ** 2
+    return slide + floor / max(mask.sum(), 1) + sink + fast / F.SINK_FRAMES
+
+
+def _swung(t=40):
+    """The seated motion with the body jerked 0.3 m in one frame (9 m/s: the speed of a
+    leg swung onto a bed that reached the teleport threshold)."""
+    f = _seated_motion(t)
+    f[t // 2:, 1] += 0.3
+    return f
 
 
 @pytest.mark.parametrize("action", [SIT, LIE])
-def test_foot_loss_matches_a_frame_loop(action):
-    f = _seated_motion()
+@pytest.mark.parametrize("make", [_seated_motion, _swung])
+def test_foot_loss_matches_a_frame_loop(action, make):
+    f = make()
     mask = np.ones(len(f), bool)
     mask[-5:] = False
     got = float(F.foot_loss(jnp.asarray(f), None, jnp.asarray(mask), action))
     np.testing.assert_allclose(got, _brute_loss(f, None, mask, action), rtol=2e-4)
+
+
+def test_a_foot_faster_than_the_limit_is_slowed():
+    """The speed term: nothing under FAST_SPEED, and gradient steps on the body's rotations
+    slow a foot over it."""
+    slow, fast = _seated_motion(), _swung()
+    mask = jnp.ones(len(slow), bool)
+    off = {"floor_weight": 0.0}
+
+    def speed(x):  # the fastest foot joint, m/s
+        feet = np.asarray(motion_to_joints(jnp.asarray(x), None, FOOT_JOINTS))
+        return np.linalg.norm(np.diff(feet, axis=0), axis=-1).max() * 30
+
+    assert speed(slow) < F.FAST_SPEED and speed(fast) > 8.5
+    base = float(F.foot_loss(jnp.asarray(slow), None, mask, LIE, **off))
+    assert float(F.foot_loss(jnp.asarray(fast), None, mask, LIE, **off)) > base + 1.0
+    grad = jax.grad(lambda x: F.foot_loss(x, None, mask, LIE, **off))
+    x = jnp.asarray(fast)
+    for _ in range(20):
+        x = x - 3e-4 * grad(x).at[:, :TRAJECTORY_DIM].set(0.0)
+    assert speed(np.asarray(x)) < F.FAST_SPEED
 
 
 def test_foot_loss_gradients():

@@ -23,6 +23,10 @@ body's joint rotations lower
   seat too high for its legs had its toes 7–12 cm in the floor for 20 frames, and the
   floor term, a mean over the motion's frames, moved them 2 cm. Feet above the floor give
   it exactly nothing (``docs/results.md``, "Feet out of the floor: the sink term");
+- **fast**: how far each foot joint moves faster than :data:`FAST_SPEED` between two frames,
+  in units of :data:`FAST_SCALE`, squared and summed as the sink term: on real beds, the legs
+  swung up onto the mattress at 9.0 m/s, the teleport threshold; a walking foot (3–5 m/s) is
+  left alone;
 
 the sampler's later steps then continue from the corrected ``x̂0``, so the body the
 model finishes is its own, fitted to the planted feet. The root trajectory is not moved
@@ -41,8 +45,9 @@ from jaxmotion.constants import ACTION_CLASSES, FOOT_JOINTS, SCENE_FPS
 from jaxmotion.eval.skating import FOOT_FLOOR_OFFSETS
 from jaxmotion.motion.representation import TRAJECTORY_DIM, motion_to_joints
 
-__all__ = ["ACTIVE_FRACTION", "CONTACT_HEIGHT", "FLOOR_SCALE", "ITERATIONS", "SINK_FRAMES",
-           "SINK_TOLERANCE", "SLIDE_SCALE", "STEP", "foot_loss", "make_foot_refiner"]
+__all__ = ["ACTIVE_FRACTION", "CONTACT_HEIGHT", "FAST_SCALE", "FAST_SPEED", "FLOOR_SCALE",
+           "ITERATIONS", "SINK_FRAMES", "SINK_TOLERANCE", "SLIDE_SCALE", "STEP", "foot_loss",
+           "make_foot_refiner"]
 
 #: A foot joint this far (m) above its flat-foot height is half "near the floor".
 CONTACT_HEIGHT = 0.05
@@ -57,6 +62,10 @@ SINK_TOLERANCE = 0.01
 #: length: a few frames in the floor (a perched start on a bar stool) are not diluted by the
 #: many where the feet are fine, whose gradient is exactly 0.
 SINK_FRAMES = 2.0
+#: A foot joint faster than this (m/s) is slowed, in units of FAST_SCALE, summed over the
+#: frame pairs (as the sink term): a swing of the legs onto a bed reached the teleport
+#: threshold (9 m/s); a walking foot swings at 3-5 m/s and is left alone.
+FAST_SPEED, FAST_SCALE = 6.5, 1.0
 #: Gradient steps per reverse step, and the size of each (normalised feature units).
 ITERATIONS = 3
 STEP = 1.0
@@ -74,7 +83,7 @@ _LIE = ACTION_CLASSES.index("lie")
 
 
 def foot_loss(features, betas, mask, action, floor_weight: float = 1.0):
-    """Sliding + floor + sink terms (module docstring) of motion ``features [T, 135]`` (metres,
+    """Sliding + floor + sink + fast terms (module docstring) of motion ``features [T, 135]`` (metres,
     crop frame), body ``betas [10]``, valid frames ``mask [T]``, ``action`` index.
 
     Returns a float32 scalar (mean over valid frame pairs / frames)."""
@@ -93,7 +102,10 @@ def foot_loss(features, betas, mask, action, floor_weight: float = 1.0):
     floor = jnp.sum(valid * (lowest / FLOOR_SCALE) ** 2) / jnp.maximum(jnp.sum(mask), 1.0)
     under = jax.nn.relu(-height - SINK_TOLERANCE) / FLOOR_SCALE  # [T, F]
     sink = jnp.sum(mask.astype(jnp.float32)[:, None] * under ** 2) / SINK_FRAMES
-    return slide + floor_weight * floor + sink
+    speed = jnp.linalg.norm(feet[1:] - feet[:-1] + 1e-9, axis=-1) * SCENE_FPS  # [T-1, F]
+    fast = jax.nn.relu(speed - FAST_SPEED) / FAST_SCALE
+    fast = jnp.sum(pair[:, None] * fast ** 2) / SINK_FRAMES
+    return slide + floor_weight * floor + sink + fast
 
 
 def make_foot_refiner(betas, mask, action, mean, std, strength: float = 1.0, *,

@@ -251,12 +251,8 @@ class ObjectCentricPipeline:
                      refine, known_mask=known, known_values=values)
         traj = x[0] * t_std + t_mean
         if clearance:
-            action = base["action"][0]
-            weight = free_frames(mask, action, prefix_frames)
-            standing = traj[:, 2] > standing_height(betas) - STANDING_SLACK
-            traj = traj.at[:, :2].set(clear_path(traj[:, :2], points, target_mask, action,
-                                                 weight, standing))
-            traj, _ = seated_turn(traj, points, target_mask, mask, action, prefix_frames)
+            traj = _cleared(traj, points, target_mask, mask, base["action"][0], betas,
+                            prefix_frames)
         return traj
 
     def complete_one(self, key, points, normals, target_mask, text, betas, trajectory, mask, *,
@@ -435,6 +431,19 @@ class ObjectCentricPipeline:
         if action is None:
             action = jnp.full((b,), UNKNOWN_ACTION, jnp.int32)
         return keys, jnp.asarray(action, jnp.int32)
+
+
+@jax.jit
+def _cleared(traj, points, target_mask, mask, action, betas, given):
+    """The sampled trajectory ``traj [T, 9]`` moved out of the furniture and its seated
+    legs turned to free floor (:mod:`jaxmotion.diffusion.clearance`,
+    :mod:`jaxmotion.diffusion.seated_turn`). Jitted on its own, so that eager callers
+    (``sample_one`` outside ``jit``) compile its loops once per shape, not at every call."""
+    weight = free_frames(mask, action, given)
+    standing = traj[:, 2] > standing_height(betas) - STANDING_SLACK
+    traj = traj.at[:, :2].set(clear_path(traj[:, :2], points, target_mask, action, weight,
+                                         standing))
+    return seated_turn(traj, points, target_mask, mask, action, given)[0]
 
 
 def furniture_mask(points, target_mask, *, target_too: bool = False):

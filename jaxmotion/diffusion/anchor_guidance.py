@@ -82,6 +82,7 @@ __all__ = [
     "anchor_frame",
     "anchor_offset",
     "guided_actions",
+    "hold_weights",
     "lying_rotation_6d",
     "make_anchor_refiner",
     "standing_height",
@@ -187,6 +188,14 @@ def anchor_frame(mask, action) -> jnp.ndarray:
     first = jnp.argmax(mask)
     last = mask.shape[0] - 1 - jnp.argmax(mask[::-1])
     return jnp.where(jnp.asarray(action) == _STAND_UP, first, last)
+
+
+def hold_weights(mask, frame) -> jnp.ndarray:
+    """``[T]``: 1 on the :data:`HOLD` frames nearest the anchor ``frame``, falling linearly to 0
+    over the next :data:`TAPER` on either side; 0 outside ``mask [T]``."""
+    mask = jnp.asarray(mask, bool)
+    dist = jnp.abs(jnp.arange(mask.shape[0]) - frame).astype(jnp.float32)
+    return jnp.clip(1.0 - (dist - (HOLD - 1)) / TAPER, 0.0, 1.0) * mask
 
 
 def support_surface(points, normals, target_mask) -> jnp.ndarray:
@@ -332,9 +341,7 @@ def make_anchor_refiner(points, normals, target_mask, mask, action, mean, std,
     middle = jnp.sum(points[:, :2] * surface[:, None], 0) / jnp.maximum(jnp.sum(surface), 1)
     stand = standing_height(betas)
     rest = jnp.where(action == _LIE, LYING_PELVIS, SEATED_PELVIS)
-    # frame weights of the height: 1 in the hold around the anchor, tapering to 0
-    dist = jnp.abs(jnp.arange(mask.shape[0]) - frame).astype(jnp.float32)
-    weight = jnp.clip(1.0 - (dist - (HOLD - 1)) / TAPER, 0.0, 1.0) * mask
+    weight = hold_weights(mask, frame)  # of the height: 1 in the hold, tapering to 0
     shift = jnp.ones(mask.shape[0], jnp.float32)  # how much of the offset each frame takes
     if given is not None:
         n_given = jnp.sum(jnp.asarray(given, jnp.int32))

@@ -44,7 +44,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxmotion.constants import SCENE_FPS
-from jaxmotion.diffusion.anchor_guidance import HOLD, TAPER, anchor_frame, guided_actions
+from jaxmotion.diffusion.anchor_guidance import TAPER, anchor_frame, guided_actions, hold_weights
 from jaxmotion.motion.planner import BODY_TOP
 
 __all__ = ["CELL", "FLOOR_GAP", "GRID", "ITERATIONS", "LOW", "MAX_MOVE", "RADIUS", "SHARES",
@@ -85,8 +85,7 @@ def free_frames(mask, action, given=None) -> jnp.ndarray:
     of :data:`~jaxmotion.constants.ACTION_CLASSES`), on the anchor's hold; 1 elsewhere."""
     mask = jnp.asarray(mask, bool)
     frame = anchor_frame(mask, action)
-    dist = jnp.abs(jnp.arange(mask.shape[0]) - frame).astype(jnp.float32)
-    on_target = jnp.clip(1.0 - (dist - (HOLD - 1)) / TAPER, 0.0, 1.0)
+    on_target = hold_weights(mask, frame)
     w = jnp.where(guided_actions(action), 1.0 - on_target, 1.0) * mask
     if given is not None:  # a prefix: held, then free again over TAPER frames
         n_given = jnp.sum(jnp.asarray(given, jnp.int32))

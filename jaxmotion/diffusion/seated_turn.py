@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxmotion.constants import ACTION_CLASSES
-from jaxmotion.diffusion.anchor_guidance import HOLD, TAPER, anchor_frame
+from jaxmotion.diffusion.anchor_guidance import anchor_frame, hold_weights
 
 __all__ = ["ANGLES", "LEG_BAND", "LEG_HALF_WIDTH", "LEG_RADIUS", "LEG_REACH", "LEG_SAMPLES",
            "TURN_COST", "leg_cost", "seated_turn", "turn_yaw"]
@@ -99,8 +99,7 @@ def seated_turn(traj, points, target_mask, mask, action, given=None):
     costs = jax.vmap(cost)(angles)
     seated = (jnp.asarray(action) == _SIT) | (jnp.asarray(action) == _STAND_UP)
     angle = jnp.where(seated, angles[jnp.argmin(costs)], 0.0)
-    dist = jnp.abs(jnp.arange(mask.shape[0]) - frame).astype(jnp.float32)
-    weight = jnp.clip(1.0 - (dist - (HOLD - 1)) / TAPER, 0.0, 1.0) * mask
+    weight = hold_weights(mask, frame)
     if given is not None:
         weight = weight * (1.0 - jnp.asarray(given, jnp.float32))
     turned = turn_yaw(traj[:, 3:9], angle * weight)

@@ -384,7 +384,8 @@ class _Runner:
         per_case = lambda get: np.stack([get(s) for s, _ in full])
         inputs = (np.stack([s.keys[r] for s, r in full]), *(stack(i) for i in range(1, 10)),
                   per_case(lambda s: s.crop[1]).astype(np.float32),
-                  per_case(lambda s: s.crop[2]).astype(np.float32))
+                  per_case(lambda s: s.crop[2]).astype(np.float32),
+                  per_case(lambda s: s.args[12]))  # the crop's obstacle distance field
         sharding = NamedSharding(self.mesh, PartitionSpec("batch"))
         res = jax.device_get(program(*jax.device_put(inputs, sharding)))
         for i, (state, r) in enumerate(rows):

@@ -47,7 +47,7 @@ from jaxmotion.motion.representation import TRAJECTORY_DIM, motion_to_joints
 
 __all__ = ["ACTIVE_FRACTION", "CONTACT_HEIGHT", "FAST_SCALE", "FAST_SPEED", "FLOOR_SCALE",
            "ITERATIONS", "SINK_FRAMES", "SINK_TOLERANCE", "SLIDE_SCALE", "STEP", "foot_loss",
-           "make_foot_refiner"]
+           "foot_terms", "make_foot_refiner", "make_refiner"]
 
 #: A foot joint this far (m) above its flat-foot height is half "near the floor".
 CONTACT_HEIGHT = 0.05
@@ -88,7 +88,13 @@ def foot_loss(features, betas, mask, action, floor_weight: float = 1.0):
 
     Returns a float32 scalar (mean over valid frame pairs / frames)."""
     # the feet's kinematic chain alone: the same positions, a third of the work
-    feet = motion_to_joints(features, betas, FOOT_JOINTS)  # [T, F, 3]
+    return foot_terms(motion_to_joints(features, betas, FOOT_JOINTS), mask, action,
+                      floor_weight)
+
+
+def foot_terms(feet, mask, action, floor_weight: float = 1.0):
+    """:func:`foot_loss` of the foot joints ``feet [T, 4, 3]`` (``FOOT_JOINTS``, placed
+    already: a caller that places the whole body shares its forward kinematics)."""
     offsets = jnp.asarray(FOOT_FLOOR_OFFSETS, jnp.float32)
     height = feet[..., 2] - offsets  # [T, F]
     near = jax.lax.stop_gradient(jax.nn.sigmoid((CONTACT_HEIGHT - height) / CONTACT_SOFTNESS))
@@ -120,13 +126,20 @@ def make_foot_refiner(betas, mask, action, mean, std, strength: float = 1.0, *,
     and cost nothing, ``t`` must not be batched under ``vmap``, as a sampler's is not).
     Only the body's rotations move (features after :data:`TRAJECTORY_DIM`)."""
     betas = None if betas is None else jnp.asarray(betas, jnp.float32)
-    scale = jnp.float32(step * strength)
+    return make_refiner(lambda f: strength * foot_loss(f, betas, mask, action), mean, std,
+                        iterations=iterations, step=step, active_below=active_below)
+
+
+def make_refiner(loss, mean, std, *, iterations: int = ITERATIONS, step: float = STEP,
+                 active_below: int | None = None):
+    """The reconstruction guidance of :func:`make_foot_refiner` for any ``loss(features
+    [T, 135]) -> scalar`` of the motion in metres (foot guidance's terms, those of
+    :mod:`.body_clearance`, or their sum): ``iterations`` steps of size ``step`` down its
+    gradient, smoothed over time, on the body's rotations of ``x0_hat`` (normalised by
+    ``mean``, ``std``), at the reverse steps whose noise level is below ``active_below``."""
+    scale = jnp.float32(step)
     body = (jnp.arange(mean.shape[-1]) >= TRAJECTORY_DIM).astype(jnp.float32)
-
-    def loss(x):
-        return foot_loss(x * std + mean, betas, mask, action)
-
-    grad = jax.grad(loss)
+    grad = jax.grad(lambda x: loss(x * std + mean))
     radius = int(3 * SMOOTHING + 0.5)
     kernel = jnp.exp(-0.5 * (jnp.arange(-radius, radius + 1) / SMOOTHING) ** 2)
     kernel = kernel / jnp.sum(kernel)

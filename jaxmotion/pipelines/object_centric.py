@@ -34,7 +34,8 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from jaxmotion.constants import ACTION_CLASSES, SCENE_FPS, UNKNOWN_ACTION
+from jaxmotion.constants import ACTION_CLASSES, FOOT_JOINTS, SCENE_FPS, UNKNOWN_ACTION
+from jaxmotion.diffusion import body_clearance as body_module
 from jaxmotion.diffusion import foot_guidance as foot_module
 from jaxmotion.diffusion.anchor_guidance import (
     make_anchor_refiner,
@@ -171,7 +172,8 @@ class ObjectCentricPipeline:
                    completion_spec: SamplerSpec = DEFAULT_SPEC,
                    keep_trajectory: bool = True, action=None,
                    anchor_guidance: float = 1.0, standing_guidance: float = 1.0,
-                   foot_guidance: float = 1.0, prefix=None, prefix_frames=None,
+                   foot_guidance: float = 1.0, body_clearance: float = 1.0, field=None,
+                   prefix=None, prefix_frames=None,
                    traj_sensor_on: str = "trajectory", clearance: bool = True) -> dict:
         """One motion in one crop (jit / vmap it).
 
@@ -197,6 +199,12 @@ class ObjectCentricPipeline:
           foot_guidance: the strength in [0, 1] of foot guidance on the completion stage
             (:mod:`jaxmotion.diffusion.foot_guidance`: feet near the floor held still, the
             lowest foot on the floor; 0 = off).
+          body_clearance: the strength in [0, 1] of body clearance on the completion stage
+            (:mod:`jaxmotion.diffusion.body_clearance`: the joints kept off the furniture
+            other than the target; 0 = off); it needs ``field``.
+          field: the obstacles' distance field in the crop frame
+            (:func:`jaxmotion.diffusion.body_clearance.room_field` of the room's points other
+            than the target's); None: no body clearance.
           prefix, prefix_frames: ``[T, 135]`` motion features (crop frame) and ``[T]`` bool:
             the frames of ``prefix`` that are given (inpainted in both stages: the previous
             step's last frames when motions are joined); None: none.
@@ -219,7 +227,7 @@ class ObjectCentricPipeline:
                                 prefix_frames, clearance)
         return self._complete(k_comp, base, null, points, normals, traj, betas, completion_spec,
                               keep_trajectory, prefix, prefix_frames, foot_guidance,
-                              traj_sensor_on)
+                              traj_sensor_on, field, body_clearance)
 
     def _trajectory(self, key, base, null, points, normals, target_mask, betas, mask, spec,
                     anchor_guidance, standing_guidance, prefix, prefix_frames,
@@ -257,17 +265,20 @@ class ObjectCentricPipeline:
 
     def complete_one(self, key, points, normals, target_mask, text, betas, trajectory, mask, *,
                      spec: SamplerSpec = DEFAULT_SPEC, action=None, prefix=None,
-                     prefix_frames=None, foot_guidance: float = 0.0) -> dict:
+                     prefix_frames=None, foot_guidance: float = 0.0,
+                     body_clearance: float = 1.0, field=None) -> dict:
         """The completion stage alone along a given root ``trajectory [T, 9]`` (crop frame):
         trajectory control, the pelvis follows it exactly. Arguments as :meth:`sample_one`;
         returns the same dict. Foot guidance is off by default here: along the rule-made
         roots of given and planned paths (one pelvis height, no bob) it puts feet that
         hovered on the floor, where they slide (feet sliding along the test split's walks'
-        paths in 63 % of frame pairs with it, 42 % without)."""
+        paths in 63 % of frame pairs with it, 42 % without). Body clearance is on where a
+        ``field`` is given."""
         base, null = self._conditions(points, normals, target_mask, text, betas, mask, action)
         return self._complete(key, base, null, points, normals, jnp.asarray(trajectory,
                                                                             jnp.float32),
-                              betas, spec, True, prefix, prefix_frames, foot_guidance)
+                              betas, spec, True, prefix, prefix_frames, foot_guidance,
+                              "trajectory", field, body_clearance)
 
     def _conditions(self, points, normals, target_mask, text, betas, mask, action):
         """The condition dict of a batch of one, and its text-dropped override."""
@@ -281,8 +292,10 @@ class ObjectCentricPipeline:
 
     def _complete(self, key, base, null, points, normals, traj, betas, spec, keep_trajectory,
                   prefix, prefix_frames, foot_guidance=0.0,
-                  traj_sensor_on: str = "trajectory") -> dict:
-        """Stage 2: the whole motion along ``traj [T, 9]`` (metres, crop frame)."""
+                  traj_sensor_on: str = "trajectory", field=None,
+                  body_clearance: float = 0.0) -> dict:
+        """Stage 2: the whole motion along ``traj [T, 9]`` (metres, crop frame); body clearance
+        needs the obstacles' distance ``field``."""
         if traj_sensor_on not in TRAJ_SENSOR_PLACEMENTS:
             raise ValueError(f"traj_sensor_on must be one of {TRAJ_SENSOR_PLACEMENTS}, got "
                              f"{traj_sensor_on!r}")
@@ -317,13 +330,24 @@ class ObjectCentricPipeline:
             norm = ((prefix - c_mean) / c_std)[None]
             values = norm if values is None else jnp.where(given, norm, values)
         refine = None
-        if foot_guidance:
+        valid, act = base["mask"][0], base["action"][0]
+        loss = None
+        if body_clearance and field is not None:
+            def loss(f):  # the whole body placed once for both terms
+                joints = motion_to_joints(f, betas)
+                clear = body_clearance * body_module.joints_clearance(joints, field, valid)
+                if not foot_guidance:
+                    return clear
+                feet = joints[:, jnp.asarray(FOOT_JOINTS)]
+                return clear + foot_guidance * foot_module.foot_terms(feet, valid, act)
+        elif foot_guidance:
+            def loss(f):
+                return foot_guidance * foot_module.foot_loss(f, betas, valid, act)
+        if loss is not None:
             late = round(foot_module.ACTIVE_FRACTION * self.comp_schedule.num_steps)
-            feet = foot_module.make_foot_refiner(betas, base["mask"][0], base["action"][0],
-                                                 c_mean, c_std, foot_guidance,
-                                                 active_below=late)
-            # the feet are planted under the root that will be kept: the known values first
-            refine = feet if known is None else (lambda x, t: feet(jnp.where(known, values, x),
+            body = foot_module.make_refiner(loss, c_mean, c_std, active_below=late)
+            # the body is fitted around the root that will be kept: the known values first
+            refine = body if known is None else (lambda x, t: body(jnp.where(known, values, x),
                                                                    t))
         y = spec.run(key, comp_denoise, self.comp_schedule, shape, cond, {**cond, **null},
                      refine, known_mask=known, known_values=values)
@@ -335,8 +359,9 @@ class ObjectCentricPipeline:
                motion_candidates: int = 1, anchor_first=None,
                keep_trajectory: bool = True, action=None,
                anchor_guidance: float = 1.0, standing_guidance: float = 1.0,
-               foot_guidance: float = 1.0, avoid=None,
-               traj_sensor_on: str = "trajectory", clearance: bool = True) -> dict:
+               foot_guidance: float = 1.0, body_clearance: float = 1.0, fields=None,
+               avoid=None, traj_sensor_on: str = "trajectory",
+               clearance: bool = True) -> dict:
         """Motions for a batch of crops, the best of ``motion_candidates`` each: the two stages
         :meth:`sample_trajectories` then :meth:`complete_trajectories` (one program, or two
         that load side by side as ``generate``'s do; the same motions).
@@ -349,9 +374,11 @@ class ObjectCentricPipeline:
           candidates: never a teleporting one while another is smooth; of those near enough
           the target at the anchor frame, the one whose feet slide, hover or sink in the
           fewest frames); keep_trajectory, anchor_guidance, standing_guidance,
-          foot_guidance, traj_sensor_on, clearance: as
+          foot_guidance, body_clearance, traj_sensor_on, clearance: as
           :meth:`sample_one`; action: ``[B]`` int indices into ``ACTION_CLASSES`` (None:
-          unknown); avoid: ``[B, N]`` bool or None, the points a body must keep out of
+          unknown); fields: ``[B, *FIELD_SHAPE]`` each crop's obstacle distance field
+          (:func:`jaxmotion.diffusion.body_clearance.room_field`; None: no body clearance);
+          avoid: ``[B, N]`` bool or None, the points a body must keep out of
           (furniture): among the plausible candidates, those touching them in the fewest
           frames compete.
         Returns:
@@ -368,7 +395,9 @@ class ObjectCentricPipeline:
                                           trajs, completion=completion,
                                           anchor_first=anchor_first,
                                           keep_trajectory=keep_trajectory, action=action,
-                                          foot_guidance=foot_guidance, avoid=avoid,
+                                          foot_guidance=foot_guidance,
+                                          body_clearance=body_clearance, fields=fields,
+                                          avoid=avoid,
                                           traj_sensor_on=traj_sensor_on)
 
     def sample_trajectories(self, key, points, normals, target, text_emb, betas, mask, *,
@@ -395,8 +424,9 @@ class ObjectCentricPipeline:
     def complete_trajectories(self, key, points, normals, target, text_emb, betas, mask,
                               trajectories, *, completion: SamplerSpec = DEFAULT_SPEC,
                               anchor_first=None, keep_trajectory: bool = True, action=None,
-                              foot_guidance: float = 1.0, avoid=None,
-                              traj_sensor_on: str = "trajectory", keys=None) -> dict:
+                              foot_guidance: float = 1.0, body_clearance: float = 1.0,
+                              fields=None, avoid=None, traj_sensor_on: str = "trajectory",
+                              keys=None) -> dict:
         """Stage 2 of :meth:`sample`: the motions along ``trajectories [B, M, T, 9]`` (from
         :meth:`sample_trajectories` with the same ``key`` or ``keys``), the best of the M
         kept; arguments and result as :meth:`sample`."""
@@ -405,16 +435,17 @@ class ObjectCentricPipeline:
         b, m = trajectories.shape[:2]
         keys, action = self._candidate_keys(key, b, m, action, keys)
 
-        def one(k, tr, p, n, t, e, bt, mk, a):
+        def one(k, tr, p, n, t, e, bt, mk, a, fd):
             base, null = self._conditions(p, n, t, e, bt, mk, a)
             out = self._complete(jax.random.split(k)[1], base, null, p, n, tr, bt, completion,
-                                 keep_trajectory, None, None, foot_guidance, traj_sensor_on)
+                                 keep_trajectory, None, None, foot_guidance, traj_sensor_on,
+                                 fd, body_clearance if fd is not None else 0.0)
             return out["joints"], out["motion"]
 
-        per_candidate = jax.vmap(one, in_axes=(0, 0, None, None, None, None, None, None, None))
+        per_candidate = jax.vmap(one, in_axes=(0, 0) + (None,) * 8)
         joints, motion = jax.vmap(per_candidate)(keys, jnp.asarray(trajectories, jnp.float32),
                                                  points, normals, target, text_emb, betas, mask,
-                                                 action)
+                                                 action, fields)
         if m == 1:
             return {"joints": joints[:, 0], "motion": motion[:, 0]}
         best = select_motion(joints, points, target, mask, anchor_first,
@@ -454,6 +485,19 @@ def furniture_mask(points, target_mask, *, target_too: bool = False):
     import numpy as np
 
     return (np.asarray(points)[:, 2] > 0.1) & (~np.asarray(target_mask, bool) | bool(target_too))
+
+
+def obstacle_field(room, chosen, action, shift, rot):
+    """The distance field of the room's obstacles in a crop's frame, for body clearance
+    (:func:`jaxmotion.diffusion.body_clearance.room_field`): every point of ``room`` (a
+    :class:`~jaxmotion.scene.Scene`) but those of the target ``chosen``, unless the body keeps
+    out of its target too (:func:`keeps_out_of_target` of ``action``)."""
+    import numpy as np
+
+    obstacle = np.ones(room.num_points, bool)
+    if not keeps_out_of_target(action):
+        obstacle &= np.asarray(room.instance) != chosen
+    return body_module.room_field(room.xyz, obstacle, shift, rot)
 
 
 def keeps_out_of_target(action) -> bool:
@@ -535,9 +579,10 @@ def sampler_inputs(room, centre, chosen: int, anchor_first: bool, text_emb, opts
                             "object-centric models see; is it an object of the room?")
     normals = (np.asarray(room.normal[pick], np.float32) @ rot.T).astype(np.float32)
     avoid = furniture_mask(pts, on_target, target_too=keeps_out_of_target(action))
+    field = obstacle_field(room, chosen, action, shift, rot)
     args = _sampler_arguments(opts.samples, frames, root, pts, normals, on_target,
                               np.asarray(pooled_text(text_emb), np.float32)[0], anchor_first,
-                              action, avoid, rot, shift)
+                              action, avoid, rot, shift, field)
     return args, (pick, rot, shift)
 
 
@@ -570,7 +615,8 @@ def prefetch_sampler(opts, files, root, aot_dir, versions) -> bool:
     flags = np.zeros(spec.num_points, bool)
     text = np.zeros(int(_denoiser_config(files[1])["text_dim"]), np.float32)
     args = _sampler_arguments(opts.samples, frames, root, xyz, xyz, flags, text, False, None,
-                              flags, np.eye(3, dtype=np.float32), np.zeros(3, np.float32))
+                              flags, np.eye(3, dtype=np.float32), np.zeros(3, np.float32),
+                              body_module.empty_field())
     trajs = np.zeros((opts.samples, opts.motion_candidates, frames, TRAJECTORY_DIM), np.float32)
     started = [prefetch(aot_dir, name, fingerprint, specs_of(stage_args)) for name, stage_args
                in zip(PROGRAMS, (_stage_arguments(args), _stage_arguments(args, trajs)))]
@@ -633,10 +679,11 @@ def _sampler_program(opts, files, versions):
     def build_completion():
         pipe = load_object_pipeline(str(files[0]), str(files[1]))
 
-        def run(kd, p, n, t, e, b, m, f, a, av, rot, shift, trajs):
+        def run(kd, p, n, t, e, b, m, f, a, av, rot, shift, field, trajs):
+            fields = jnp.broadcast_to(field, (p.shape[0], *field.shape))  # one crop, K rows
             res = pipe.complete_trajectories(main(kd), p, n, t, e, b, m, trajs,
                                              completion=stage, anchor_first=f, action=a,
-                                             avoid=av)
+                                             fields=fields, avoid=av)
             return _in_scene(res, b, rot, shift)
 
         return run
@@ -660,7 +707,8 @@ def candidate_keys(root, samples: int, motion_candidates: int):
 def batch_sampler(opts, files, mesh=None):
     """Both stages as one jitted program over rows of many requests (batch generation,
     :mod:`jaxmotion.batch`): ``run(keys [B, M, 2], points, normals, target, text, betas, mask,
-    anchor_first, action, avoid, rotation [B, 3, 3], shift [B, 3])`` → ``{"joints", ...}`` as
+    anchor_first, action, avoid, rotation [B, 3, 3], shift [B, 3], field [B, *FIELD_SHAPE])``
+    → ``{"joints", ...}`` as
     the completion program's, each row in its own crop and scene frame. ``keys`` come from
     :func:`candidate_keys` (the rows of one request, its seed's). ``mesh``: a 1-D
     :class:`jax.sharding.Mesh` whose axis ``batch`` splits the rows; each device runs the
@@ -671,12 +719,13 @@ def batch_sampler(opts, files, mesh=None):
     n_mot = opts.motion_candidates
     pipe = load_object_pipeline(str(files[0]), str(files[1]))
 
-    def run(keys, p, n, t, e, b, m, f, a, av, rot, shift):
+    def run(keys, p, n, t, e, b, m, f, a, av, rot, shift, fields):
         keys = jax.random.wrap_key_data(keys)
         trajs = pipe.sample_trajectories(None, p, n, t, e, b, m, trajectory=stage,
                                          motion_candidates=n_mot, action=a, keys=keys)
         res = pipe.complete_trajectories(None, p, n, t, e, b, m, trajs, completion=stage,
-                                         anchor_first=f, action=a, avoid=av, keys=keys)
+                                         anchor_first=f, action=a, fields=fields, avoid=av,
+                                         keys=keys)
         return jax.vmap(_in_scene)(res, b, rot, shift)
 
     if mesh is None:
@@ -684,7 +733,7 @@ def batch_sampler(opts, files, mesh=None):
     from jax.sharding import PartitionSpec
 
     rows = PartitionSpec(mesh.axis_names[0])
-    return jax.jit(jax.shard_map(run, mesh=mesh, in_specs=(rows,) * 12, out_specs=rows,
+    return jax.jit(jax.shard_map(run, mesh=mesh, in_specs=(rows,) * 13, out_specs=rows,
                                  check_vma=False))
 
 
@@ -697,12 +746,14 @@ def _stage_arguments(args, trajectories=None):
 
 
 def _sampler_arguments(k: int, frames: int, root, pts, normals, on_target, text, anchor_first,
-                       action, avoid, rot, shift):
-    """The arguments of :func:`_sampler_program`'s program for K samples of one crop."""
+                       action, avoid, rot, shift, field):
+    """The arguments of :func:`_sampler_program`'s program for K samples of one crop (``field``
+    its obstacles' distance field, :func:`obstacle_field`, once for the K)."""
     import numpy as np
 
     tile = lambda x: np.ascontiguousarray(np.broadcast_to(x, (k, *np.shape(x))))
     return (np.asarray(root), tile(pts), tile(normals), tile(on_target), tile(text),
             np.zeros((k, 10), np.float32), np.ones((k, frames), bool), np.full(k, anchor_first),
             np.full(k, action_index(action), np.int32), tile(avoid),
-            np.asarray(rot, np.float32), np.asarray(shift, np.float32))
+            np.asarray(rot, np.float32), np.asarray(shift, np.float32),
+            np.asarray(field, np.float32))

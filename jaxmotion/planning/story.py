@@ -359,11 +359,11 @@ def _programs(files: tuple[str, str], sampler):
     betas = jnp.zeros(10, jnp.float32)
 
     def sampler_of(m):  # best of m motions
-        def sample(k, p, n, tgt, others, e, a, pre, pf):
+        def sample(k, p, n, tgt, others, e, a, pre, pf, field):
             def one(key):
                 out = pipe.sample_one(key, p, n, tgt, e, betas, jnp.ones(t, bool),
                                       trajectory_spec=sampler, completion_spec=sampler,
-                                      action=a, prefix=pre, prefix_frames=pf)
+                                      action=a, prefix=pre, prefix_frames=pf, field=field)
                 return out["motion"], out["joints"]
 
             motions, joints = jax.vmap(one)(jax.random.split(k, m))
@@ -371,9 +371,9 @@ def _programs(files: tuple[str, str], sampler):
 
         return jax.jit(sample)
 
-    def complete(k, p, n, tgt, e, a, traj, mask, pre, pf):
+    def complete(k, p, n, tgt, e, a, traj, mask, pre, pf, field):
         return pipe.complete_one(k, p, n, tgt, e, betas, traj, mask, spec=sampler,
-                                 action=a, prefix=pre, prefix_frames=pf)["motion"]
+                                 action=a, prefix=pre, prefix_frames=pf, field=field)["motion"]
 
     return pipe, spec, t, {1: sampler_of(1), CANDIDATES: sampler_of(CANDIDATES)}, \
         jax.jit(complete)
@@ -439,10 +439,11 @@ class Teller:
             self._emb[sentence] = np.asarray(pooled_text(emb), np.float32)[0]
         return self._emb[sentence]
 
-    def crop(self, centre, oid, others=False):
+    def crop(self, centre, oid, action, others=False):
         """The crop around ``centre``: points, normals, the object ``oid``'s mask, the crop
-        frame (``rot``, ``shift``) and, with ``others``, the mask of the points a body must keep
-        out of (above 0.1 m, the object's own aside: :func:`furniture_mask`)."""
+        frame (``rot``, ``shift``), with ``others`` the mask of the points a body must keep
+        out of (above 0.1 m, the object's own aside: :func:`furniture_mask`), and the room's
+        obstacles' distance field for a body doing ``action`` there (:func:`obstacle_field`)."""
         from jaxmotion.data.crop import crop_at
 
         rng = np.random.default_rng([self.seed, 7, self.windows])
@@ -450,13 +451,13 @@ class Teller:
                                         self.spec)
         normals = (np.asarray(self.scene.normal[pick], np.float32) @ rot.T).astype(np.float32)
         inst = self.scene.instance[pick]
+        from jaxmotion.pipelines.object_centric import furniture_mask, obstacle_field
+
         out = (pts.astype(np.float32), normals, inst == oid, rot.astype(np.float32),
                shift.astype(np.float32))
-        if not others:
-            return out
-        from jaxmotion.pipelines.object_centric import furniture_mask
-
-        return (*out, furniture_mask(pts, inst == oid))
+        if others:
+            out = (*out, furniture_mask(pts, inst == oid))
+        return (*out, obstacle_field(self.scene, oid, action, shift, rot))
 
     def next_key(self):
         self.windows += 1
@@ -498,8 +499,8 @@ class Teller:
         from jaxmotion.pipelines.object_centric import action_index
 
         lo, hi = self.scene.xyz[:, :2].min(0), self.scene.xyz[:, :2].max(0)
-        pts, nrm, tgt, rot, shift, others = self.crop(
-            centre_on_object(obj, lo, hi, self.spec.size), obj["id"], others=True)
+        pts, nrm, tgt, rot, shift, others, field = self.crop(
+            centre_on_object(obj, lo, hi, self.spec.size), obj["id"], action, others=True)
         if not tgt.any():
             raise GenerateError(f"object {obj['id']} has no point in the crop around it")
         # a stand-up starts from the seated end as it is; after a walk the body crossfades
@@ -507,7 +508,7 @@ class Teller:
         pre, given = self.prefix(rot, shift, blend)
         draw = self._sample[1 if action == "stand_up" else CANDIDATES]
         out = np.asarray(draw(self.next_key(), pts, nrm, tgt, others, self.text(action, obj),
-                              action_index(action), pre, given))
+                              action_index(action), pre, given, field))
         new = _to_scene(out, rot, shift)
         if action == "stand_up":  # up, then the next step walks: cut the model's walk-off
             new = new[:stood_up(new[:, 2], float(new[0, 2]), self.stand)]
@@ -595,7 +596,8 @@ class Teller:
             stop = min(s + t, n)
             win = np.concatenate([full[s:stop], np.repeat(full[stop - 1:stop], t - (stop - s),
                                                           axis=0)])
-            pts, nrm, tgt, rot, shift = self.crop(win[: stop - s, :2].mean(0), oid)
+            pts, nrm, tgt, rot, shift, field = self.crop(win[: stop - s, :2].mean(0), oid,
+                                                         "walk")
             pre = np.zeros((t, 135), np.float32)
             given = np.zeros(t, bool)
             if done > s:  # the frames already written that this window starts from
@@ -603,7 +605,8 @@ class Teller:
                 given[:PREFIX] = True
             mask = np.arange(t) < stop - s
             out = np.asarray(self._complete(self.next_key(), pts, nrm, tgt, emb, act,
-                                            _to_crop(win, rot, shift), mask, pre, given))
+                                            _to_crop(win, rot, shift), mask, pre, given,
+                                            field))
             new = _to_scene(out, rot, shift)[: stop - s]
             both = done - s  # frames the last window wrote too: the body crossfades over them
             if both > PREFIX:

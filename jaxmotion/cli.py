@@ -138,6 +138,34 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_data_inspect(args: argparse.Namespace) -> int:
+    """One motion file as jaxmotion reads it: format, frames, rate, unit, up axis and, for a
+    BVH, the joint of the file each SMPL-X joint is read from, with the mapping's confidence."""
+    import numpy as np
+
+    from jaxmotion.io import load_motion
+
+    options = {}
+    if (args.up, args.unit, args.joint_map) != ("auto", "auto", "auto"):
+        options.update(up=args.up, unit=args.unit, joint_map=args.joint_map)
+    m = load_motion(args.file, **options)
+    j = np.asarray(m.joints)
+    feet = j[:, [7, 8, 10, 11], 2]
+    out = {"file": str(args.file), "format": m.info.get("format"), "frames": int(j.shape[0]),
+           "fps": float(m.fps), "seconds": round(j.shape[0] / float(m.fps), 3),
+           "body_height_m": round(float(j[0, 15, 2] - feet[0].min()) + 0.1, 3),
+           "lowest_foot_m": round(float(feet.min()), 3)}
+    for key in ("unit", "up", "rest_frame_dropped", "joint_map", "joint_map_confidence"):
+        if key in m.info:
+            value = m.info[key]
+            out[key] = round(value, 6) if isinstance(value, float) else value
+    if "joints_from" in m.info:
+        out["joints_from"] = {k: (v if v is not None else "(filled in: no such joint)")
+                              for k, v in m.info["joints_from"].items()}
+    print(json.dumps(out, indent=2))
+    return 0
+
+
 def _cmd_data_convert(args: argparse.Namespace) -> int:
     if args.kind == "humanise":
         return _convert_humanise(args)
@@ -613,6 +641,20 @@ def build_parser() -> argparse.ArgumentParser:
                    "<parent>_End)")
     q.add_argument("--no-stats", action="store_true", help="skip the normalisation statistics")
     q.set_defaults(func=_cmd_data_convert)
+    q = data_sub.add_parser(
+        "inspect", help="show how a motion file is read (joint mapping, unit, up axis, rate)",
+        description="Read one motion file (BVH, AMASS .npz, HumanML3D .npy, ...) as 'data "
+        "convert' would and print, as JSON: frames, frame rate, unit, up axis, body height, "
+        "the lowest foot and, for a BVH, the joint of the file each SMPL-X joint is read "
+        "from (the joint map found, automatic when no built-in one names the skeleton) and "
+        "the mapping's confidence. A skeleton that cannot be mapped with confidence is an "
+        "error that shows the mapping found.")
+    q.add_argument("file", help="the motion file")
+    q.add_argument("--up", choices=("auto", "y", "z"), default="auto", help="BVH: up axis")
+    q.add_argument("--unit", default="auto", help="BVH: metres per file unit, or auto")
+    q.add_argument("--joint-map", default="auto",
+                   help="BVH: auto, a built-in map name or a JSON file {smplx_joint: bvh_joint}")
+    q.set_defaults(func=_cmd_data_inspect)
 
     p = sub.add_parser(
         "sample",

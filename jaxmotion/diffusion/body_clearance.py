@@ -54,7 +54,7 @@ CELL = 0.04
 HALF = 2.2
 TOP = 2.0
 CLIP = 0.12
-FIELD_SHAPE = (int(round(2 * HALF / CELL)) + 1,) * 2 + (int(round(TOP / CELL)) + 1,)
+FIELD_SHAPE = (round(2 * HALF / CELL) + 1,) * 2 + (round(TOP / CELL) + 1,)
 
 
 def empty_field() -> np.ndarray:

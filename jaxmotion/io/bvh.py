@@ -249,24 +249,45 @@ def _user_map(joint_map, where: str) -> tuple[str, dict]:
     return str(path), mapping
 
 
-def resolve_joint_map(names, joint_map="auto", *, where: str = "BVH") -> tuple[str, np.ndarray]:
+def resolve_joint_map(names, joint_map="auto", *, where: str = "BVH", parents=None,
+                      positions=None, report: dict | None = None) -> tuple[str, np.ndarray]:
     """Index of the BVH joint for each SMPL-X joint (−1: no counterpart) and the map's name.
 
     Args:
       names: the BVH joint names, file order.
       joint_map: ``"auto"``, a built-in name (:data:`JOINT_MAPS`), a dict or a JSON file path.
       where: the file, for error messages.
+      parents, positions: ``[J]`` parent indices and ``[J, 3]`` positions of one pose: with
+        them, ``"auto"`` maps a skeleton that no built-in map names by its names' words and
+        its shape (:func:`jaxmotion.io.skeleton_map.auto_joint_map`; the map is then
+        ``"automatic"``).
+      report: a dict to fill with ``confidence`` (1 for a built-in or given map) and
+        ``notes`` of the mapping.
     Returns:
       ``(map name, [22] int array)``.
     Raises MotionFormatError when a name is unknown, missing from the file, or a required
-    joint (:data:`REQUIRED_JOINTS`) is left out.
+    joint (:data:`REQUIRED_JOINTS`) is left out, or an automatic mapping is unsure.
     """
     names = tuple(names)
     find = _matcher(names)
+    if report is not None:
+        report.update(confidence=1.0, notes=[])
     if joint_map in (None, "auto"):
         for key, mapping in JOINT_MAPS.items():
             if (index := _builtin_index(mapping, find)) is not None:
                 return key, index
+        if parents is not None and positions is not None:
+            from jaxmotion.io.skeleton_map import MappingError, auto_joint_map
+
+            try:
+                index, confidence, notes = auto_joint_map(names, parents, positions,
+                                                          where=where)
+            except MappingError as e:
+                raise MotionFormatError(f"{e}. No built-in map ({', '.join(JOINT_MAPS)}) "
+                                        "names it either") from e
+            if report is not None:
+                report.update(confidence=confidence, notes=notes)
+            return "automatic", index
         raise MotionFormatError(
             f"{where}: the skeleton matches no built-in joint map ({', '.join(JOINT_MAPS)}); its "
             f"joints are {list(names)}. Pass joint_map= a JSON file or dict "
@@ -458,8 +479,12 @@ def load_bvh(path, *, up: str = "auto", unit="auto", fps: float | None = None,
     if not np.isfinite(bvh.frames).all() or not np.isfinite(bvh.offsets).all():
         raise MotionFormatError(f"{where}: the file has NaN or inf values")
     names = bvh.names + end_site_names(bvh)
-    map_name, index = resolve_joint_map(names, joint_map, where=where)
     world = bvh_world_positions(bvh, where=where, end_sites=True)
+    parents = np.concatenate([np.asarray(bvh.parents, int),
+                              np.asarray([p for p, _ in bvh.end_sites], int)])
+    mapped: dict = {}
+    map_name, index = resolve_joint_map(names, joint_map, where=where, parents=parents,
+                                        positions=world[0], report=mapped)
     rest_dropped = first_frame == "auto" and _leading_rest_frame(bvh, world)
     if rest_dropped:
         world = world[1:]
@@ -486,5 +511,8 @@ def load_bvh(path, *, up: str = "auto", unit="auto", fps: float | None = None,
         rate = float(round(rate))
     motion = Motion(joints=joints, fps=rate, source=where,
                     info={"format": "bvh", "joint_map": map_name, "unit": scale, "up": up,
-                          "rest_frame_dropped": bool(rest_dropped)})
+                          "rest_frame_dropped": bool(rest_dropped),
+                          "joint_map_confidence": mapped["confidence"],
+                          "joints_from": {n: (names[i] if i >= 0 else None)
+                                          for n, i in zip(JOINT_NAMES, index)}})
     return motion if fps is None else motion.resampled(fps)

@@ -232,9 +232,9 @@ def test_swapped_sides_are_an_error_that_shows_the_mapping(tmp_path):
     assert "UpperLeg_R" in str(e.value) and "joint_map=" in str(e.value)
 
 
-def test_unknown_names_are_an_error_that_lists_the_joints():
+def test_a_skeleton_that_is_no_body_is_an_error_that_lists_the_joints():
     names = [f"j{i}" for i in range(5)]
-    with pytest.raises(ValueError, match="no left or right leg found"):
+    with pytest.raises(ValueError, match="nor the shape .* show a body; the joints are"):
         auto_joint_map(names, [-1, 0, 0, 1, 2], np.zeros((5, 3)))
 
 
@@ -264,3 +264,18 @@ def test_data_inspect_prints_the_mapping_and_refuses_an_unsure_one(tmp_path, cap
     assert main(["data", "inspect", str(_write(tmp_path / "s.bvh", "unity", swap=True))]) == 2
     err = capsys.readouterr().err
     assert "left and right are swapped" in err and "LeftUpperLeg" in err
+
+
+def test_a_skeleton_whose_names_say_nothing_is_read_by_its_shape(tmp_path, reference):
+    path = _write(tmp_path / "issue.bvh", "issue")
+    text = path.read_text()
+    names = [line.split()[1] for line in text.splitlines()
+             if line.strip().startswith(("ROOT", "JOINT"))]
+    for i, n in sorted(enumerate(names), key=lambda x: -len(x[1])):  # longest first
+        text = text.replace(f" {n}\n", f" Bone{i:02d}\n")
+    (tmp_path / "bones.bvh").write_text(text)
+    m = load_bvh(tmp_path / "bones.bvh")
+    assert m.info["joint_map"] == "automatic" and m.info["joint_map_confidence"] < 0.9
+    for n in ("pelvis", "l_hip", "r_knee", "l_ankle", "r_foot", "l_wrist", "r_elbow", "head"):
+        np.testing.assert_allclose(m.joints[:, J[n]], reference.joints[:, J[n]], atol=0.02,
+                                   err_msg=n)

@@ -18,6 +18,12 @@ module reads a skeleton from its names *and* its shape:
    spine); the pelvis is the joint named so, else where the two legs meet; the spine joints
    are those between the pelvis and the neck, given to ``spine1..3`` by their height; a joint
    the skeleton has no counterpart for is left to be filled in.
+   When the names do not say (``Bone01``, ``Joint_7``, another language), the shape alone
+   (:func:`_by_shape`): the pelvis is the highest joint with three long branches, the
+   largest of which is the spine (arms and head) and the other two the legs; the head is
+   the spine's highest end, the hands where its two other branches split into fingers (or
+   end); left is up × forward, forward the way the toes point. Such a mapping's confidence
+   is lower.
 3. **Checks**: the head above the pelvis, the feet below it, each side's joints on its own
    side, and the toes pointing forward (so that a file whose sides are swapped or mirrored is
    caught). A mapping that fails one is an error that shows it, never a silent wrong body.
@@ -172,12 +178,21 @@ def auto_joint_map(names, parents, positions, *, where: str = "skeleton"):
 
     # legs: the first joint of each, then down the chain
     thighs = {s: found("thigh", s) for s in "lr"}
-    if None in thighs.values():
-        missing = [s for s, j in thighs.items() if j is None]
-        raise MappingError(
-            f"{where}: no {' or '.join({'l': 'left', 'r': 'right'}[s] for s in missing)} leg "
-            "found by name (UpLeg / UpperLeg / Thigh / Hip with a side marker such as L, "
-            f"Left, _l); the joints are {names}")
+    hands = {s: found("hand", s, None) for s in "lr"}
+    head = None
+    if None in thighs.values() or None in hands.values():
+        # the names do not say: the body's shape alone
+        shaped = _by_shape(tree, pos, helper, end_site, down)
+        if shaped is None:
+            raise MappingError(
+                f"{where}: neither the names (UpLeg / UpperLeg / Thigh, Hand / Wrist with a "
+                "side marker such as L, Left, _l) nor the shape (a joint with two legs "
+                f"below it and a spine with two arms and a head above) show a body; the joints "
+                f"are {names}")
+        thighs, hands, head, _ = shaped
+        notes.append("legs, arms and head found by the skeleton's shape (their names say "
+                     "nothing)")
+        by_shape += 3
     pelvis = found("pelvis")
     if pelvis is None or not all(tree.is_ancestor(pelvis, t) for t in thighs.values()):
         common = [a for a in tree.ancestors(thighs["l"]) if a in tree.ancestors(thighs["r"])]
@@ -208,8 +223,7 @@ def auto_joint_map(names, parents, positions, *, where: str = "skeleton"):
             notes.append(f"leg {s}: {[names[j] for j in chain[:4]]} placed by the chain's order")
 
     # head, arms, spine
-    head = found("head", None, pelvis)
-    hands = {s: found("hand", s, None) for s in "lr"}
+    head = head if head is not None else found("head", None, pelvis)
     if head is None or None in hands.values():
         what = [w for w, j in (("head", head), ("left hand", hands["l"]),
                                ("right hand", hands["r"])) if j is None]
@@ -269,6 +283,59 @@ def auto_joint_map(names, parents, positions, *, where: str = "skeleton"):
         if i >= 0 and not named[i] and not end_site[i] and JOINT_NAMES[j] != "pelvis":
             confidence -= 0.03
     return index, float(np.clip(confidence, 0.0, 1.0)), notes
+
+
+def _by_shape(tree, pos, helper, end_site, down):
+    """``(thighs {side: j}, hands {side: j}, head, pelvis)`` of a skeleton from its shape
+    alone, or None: the pelvis is the highest joint with three branches of three or more
+    joints; the branch holding the most joints is the spine (arms and head), the other two
+    the legs; up runs from the feet to the spine's joints; the head is the spine's highest
+    end, the arms its two other long branches; left is up × forward, forward the way the
+    toes point."""
+    def size(j):
+        return 1 + sum(size(c) for c in tree.children[j] if not end_site[c])
+
+    real = [j for j in range(len(tree.names)) if not helper[j]]
+    for pelvis in sorted(real, key=lambda j: (tree.depth[j], j)):
+        branches = [c for c in tree.children[pelvis] if not end_site[c] and tree.height[c] >= 2]
+        if len(branches) >= 3:
+            break
+    else:
+        return None
+    branches.sort(key=size, reverse=True)
+    spine, legs = branches[0], branches[1:3]
+    chains = [down(leg) for leg in legs]
+    if min(len(c) for c in chains) < 3:
+        return None
+    body = [j for j in real if tree.is_ancestor(spine, j) or j == spine]
+    up = pos[body].mean(0) - np.mean([pos[c[-1]] for c in chains], axis=0)
+    if np.linalg.norm(up) < 1e-9:
+        return None
+    up /= np.linalg.norm(up)
+    ends = [j for j in body
+            if not any(not end_site[c] and not helper[c] for c in tree.children[j])]
+    head = max(ends, key=lambda j: pos[j] @ up)
+    path = [a for a in reversed(tree.ancestors(head)) if tree.is_ancestor(pelvis, a)] + [head]
+    def hand(j):  # down the arm to where it splits into fingers, or to its end
+        while True:
+            kids = [c for c in tree.children[j] if not end_site[c] and not helper[c]]
+            if len(kids) != 1:
+                return j
+            j = kids[0]
+
+    arms = [hand(c) for a in path for c in tree.children[a]
+            if c not in path and not end_site[c] and not helper[c] and tree.height[c] >= 2]
+    if len(arms) < 2:
+        return None
+    arms = sorted(arms, key=lambda j: tree.depth[j], reverse=True)[:2]
+    toe = np.mean([pos[c[-1]] - pos[c[2]] for c in chains], axis=0)
+    forward = toe - (toe @ up) * up
+    if np.linalg.norm(forward) < 1e-9:
+        return None
+    left = np.cross(up, forward / np.linalg.norm(forward))
+    thighs = dict(zip("lr", sorted((c[0] for c in chains), key=lambda j: -(pos[j] @ left))))
+    hands = dict(zip("lr", sorted(arms, key=lambda j: -(pos[j] @ left))))
+    return thighs, hands, head, pelvis
 
 
 def _check(index, pos, slot) -> list[str]:

@@ -161,7 +161,7 @@ def _existing(value: str, base: Path | None, where: str, field: str) -> str:
 
 def generate_batch(cases, out, *, options=None, video: str | None = None,
                    batch_size: int | None = None, progress: bool = True,
-                   **overrides) -> list[dict]:
+                   skeleton: str = "smplx", **overrides) -> list[dict]:
     """Generate every request of ``cases`` into folder ``out`` (see the module's docstring).
 
     Args:
@@ -178,6 +178,8 @@ def generate_batch(cases, out, *, options=None, video: str | None = None,
         as single requests or more (measured on 2 cores: 0.9 s a request in calls of 8 rows,
         0.6 s one at a time), so there the gain is the warm process alone.
       progress: a progress bar and one line per request on stderr.
+      skeleton: the bone names and hierarchy of each ``motion.bvh`` (``smplx``, ``mixamo``,
+        ``ue5``: :func:`jaxmotion.export.bvh.rig_bones`).
     Returns:
       This process's rows of ``summary.jsonl`` (its requests, finished before included).
     Raises:
@@ -197,11 +199,15 @@ def generate_batch(cases, out, *, options=None, video: str | None = None,
     if out.exists() and not out.is_dir():
         raise GenerateError(f"--out {out} is a file; give a folder")
     check_outputs(video=video)
+    from jaxmotion.export.bvh import SKELETONS
+
+    if skeleton not in SKELETONS:
+        raise GenerateError(f"skeleton must be one of {', '.join(SKELETONS)}, got {skeleton!r}")
     models = check_models(opts)
     rank, ranks = jax.process_index(), jax.process_count()
     mine = todo[rank::ranks]
     out.mkdir(parents=True, exist_ok=True)
-    runner = _Runner(opts, models, out, video, batch_size, progress)
+    runner = _Runner(opts, models, out, video, batch_size, progress, skeleton)
     finished = [c for c in mine if (out / c.name / "summary.json").is_file()]
     left = [c for c in mine if c not in finished]
     runner.say(f"{len(todo)} request(s)" + (f", {len(mine)} for process {rank} of {ranks}"
@@ -243,12 +249,14 @@ class _Runner:
     ``batch_size`` rows per device, finishes and writes each request as its rows come back
     (files written on a second thread while the next rows sample)."""
 
-    def __init__(self, opts, models, out: Path, video, batch_size: int | None, progress: bool):
+    def __init__(self, opts, models, out: Path, video, batch_size: int | None, progress: bool,
+                 skeleton: str = "smplx"):
         import concurrent.futures
 
         import jax
 
         self.opts, self.models, self.out, self.video = opts, models, out, video
+        self.skeleton = skeleton
         self.progress = progress
         self.devices = jax.local_devices()
         self.one_at_a_time = (batch_size is None and len(self.devices) == 1
@@ -430,7 +438,7 @@ class _Runner:
             figures = plausibility(res.joints, np.broadcast_to(res.mask, res.joints.shape[:2]),
                                    fps=res.fps)
             row["plausibility"] = {k: np.asarray(v).tolist() for k, v in figures.items()}
-            res.save(self.out / case.name, video=self.video,
+            res.save(self.out / case.name, video=self.video, skeleton=self.skeleton,
                      extra={"summary.json": json.dumps(row, indent=1) + "\n"})
             (self.out / ".failed" / f"{case.name}.json").unlink(missing_ok=True)
             self.say(f"{case.name}: {res.pipeline}, target {res.target_id}, "

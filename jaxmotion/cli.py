@@ -340,7 +340,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     for message in warned:
         print(f"warning: {message}", file=sys.stderr)
     t1 = time.perf_counter()
-    files = res.save(args.out, video=None if args.video == "none" else args.video)
+    files = res.save(args.out, video=None if args.video == "none" else args.video,
+                     skeleton=args.skeleton)
     res.timings["write"] = time.perf_counter() - t1
     print(f"  {'write':<10} {res.timings['write']:6.2f} s", file=sys.stderr)
     print(f"wrote {', '.join(sorted(files))} to {args.out} in {time.perf_counter() - t0:.1f} s",
@@ -382,7 +383,7 @@ def _generate_batch(args: argparse.Namespace, options, t0: float) -> int:
 
     video = None if args.video in (None, "none") else args.video
     rows = generate_batch(args.batch, args.out, options=options, video=video,
-                          batch_size=args.batch_size)
+                          batch_size=args.batch_size, skeleton=args.skeleton)
     if args.coordinator is not None or os.environ.get("JAXMOTION_DISTRIBUTED") == "1":
         import jax
 
@@ -405,6 +406,43 @@ def _size_arg(text: str) -> tuple[int, int]:
         raise ValueError(f"--size {text!r}: give WIDTHxHEIGHT in pixels, e.g. 640x480 or "
                          "1280x720 (16 to 8192 each)")
     return int(m[1]), int(m[2])
+
+
+def _cmd_retarget(args: argparse.Namespace) -> int:
+    """A generated motion's SMPL-X body written as a BVH of another rig's skeleton."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from jaxmotion.export import write_bvh
+
+    src, out = Path(args.motion), Path(args.out)
+    if out.suffix.lower() != ".bvh":
+        raise ValueError(f"--out {out}: give a .bvh file")
+    if not src.is_file():
+        raise ValueError(f"{src}: no such file; give generate's motion.npz or "
+                         "motion_smplx.npz (an AMASS-style SMPL-X .npz)")
+    with np.load(src, allow_pickle=False) as f:
+        generated = {"global_orient", "body_pose", "transl", "fps"} <= set(f.files)
+        if generated:
+            k = f["global_orient"].shape[0]
+            if not 0 <= args.sample < k:
+                raise ValueError(f"--sample {args.sample}: {src} has samples 0..{k - 1}")
+            go, bp, tr = (f[n][args.sample] for n in ("global_orient", "body_pose", "transl"))
+            betas = f["betas"][args.sample] if "betas" in f.files else None
+            fps = float(f["fps"])
+    if not generated:
+        from jaxmotion.io import load_motion
+
+        m = load_motion(src)
+        if m.global_orient is None:
+            raise ValueError(f"{src} holds joints only, no SMPL-X parameters to retarget; give "
+                             "generate's motion.npz or an AMASS-style SMPL-X .npz")
+        go, bp, tr, betas, fps = m.global_orient, m.body_pose, m.transl, m.betas, m.fps
+    path = write_bvh(out, go, bp, tr, betas, fps, skeleton=args.skeleton)
+    print(f"wrote {path} ({args.skeleton} skeleton, {len(go)} frames at {fps:g} fps)",
+          file=sys.stderr)
+    return 0
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
@@ -767,6 +805,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--video", choices=("mp4", "gif", "none"), default=None,
                    help="the rendered video: mp4 (default, H.264), gif, or none (the default "
                    "with --batch)")
+    p.add_argument("--skeleton", choices=("smplx", "mixamo", "ue5"), default="smplx",
+                   help="motion.bvh's bone names and hierarchy: SMPL-X's (default, metres), "
+                   "Mixamo's (mixamorig:Hips, ...; centimetres) or Unreal Engine 5's Manny / "
+                   "Quinn (root, pelvis, spine_01..05, thigh_l, ...; centimetres); the same "
+                   "body and motion in each")
     p.add_argument("--out", required=True, help="output folder")
     b = p.add_argument_group(
         "batch generation", "many requests in one process: a JSON object a line with \"text\" "
@@ -858,6 +901,22 @@ def build_parser() -> argparse.ArgumentParser:
                    "case's crop frame, with the crop's rotation and shift), to look at them")
     p.add_argument("--out", default="results", help="output folder (default: results)")
     p.set_defaults(func=_cmd_eval)
+
+    p = sub.add_parser(
+        "retarget", help="write a generated motion as a BVH of the Mixamo, UE5 or SMPL-X rig",
+        description="Write the body of MOTION (generate's motion.npz, or motion_smplx.npz / "
+        "any AMASS-style SMPL-X .npz) as a BVH whose bone names and hierarchy are those of a "
+        "rig animators use: mixamo (mixamorig:Hips ..., centimetres; Blender's Mixamo "
+        "conventions), ue5 (Unreal Engine 5's Manny / Quinn: root, pelvis, spine_01..05, "
+        "neck_01, neck_02, head, clavicle_l, upperarm_l, ..., thigh_l, calf_l, foot_l, ball_l; "
+        "centimetres) or smplx (SMPL-X's names, metres). The body's own proportions and rest "
+        "pose (a T-pose) are kept: the joints read back are generate's.")
+    p.add_argument("motion", help="generate's motion.npz or an AMASS-style SMPL-X .npz")
+    p.add_argument("--skeleton", required=True, choices=("smplx", "mixamo", "ue5"))
+    p.add_argument("--out", required=True, help="the .bvh file to write")
+    p.add_argument("--sample", type=int, default=0, help="which sample of a motion.npz "
+                   "(default 0)")
+    p.set_defaults(func=_cmd_retarget)
 
     p = sub.add_parser(
         "render",

@@ -107,15 +107,17 @@ class Generation:
                 f"scene={self.scene.name!r})")
 
     def save(self, out, *, video: str | None = "mp4", bvh_sample: int = 0,
-             extra: dict | None = None) -> dict[str, Path]:
+             extra: dict | None = None, skeleton: str = "smplx") -> dict[str, Path]:
         """Write the outputs into folder ``out``; returns ``{name: path}``. See
         :func:`jaxmotion.export.write_generation`: ``motion.npz`` (every field),
         ``motion.bvh`` and ``motion_smplx.npz`` (AMASS-style SMPL-X; sample ``bvh_sample``),
         ``motion.glb``, ``motion.mp4`` /
         ``motion.gif`` (``video="mp4"|"gif"``, None to skip: the rendered bodies in the room)
         and ``viewer.html``; ``extra``: more files ``{name: text or bytes}`` written with them
-        (batch generation's ``summary.json``). An error or an interrupt leaves no half-written
-        file and no new empty folder."""
+        (batch generation's ``summary.json``); ``skeleton``: ``motion.bvh``'s bone names and
+        hierarchy (``smplx``, ``mixamo``, ``ue5``). An error or an interrupt leaves no
+        half-written file and no new empty folder."""
         from jaxmotion.export.folder import write_generation
 
-        return write_generation(self, out, video=video, bvh_sample=bvh_sample, extra=extra)
+        return write_generation(self, out, video=video, bvh_sample=bvh_sample, extra=extra,
+                                skeleton=skeleton)

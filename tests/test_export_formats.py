@@ -790,3 +790,71 @@ def test_viewer_draws_the_body_in_headless_chromium(tmp_path):
     assert np.median(b - r) > 20 and np.median(g - r) > 5, (np.median(r), np.median(g),
                                                            np.median(b))
     assert abs(np.median(rows) - 300) < 120 and abs(np.median(cols) - 400) < 120
+
+
+@pytest.mark.parametrize("skeleton", ["mixamo", "ue5"])
+def test_bvh_of_another_rig_poses_the_same_body(tmp_path, skeleton):
+    from jaxmotion.eval.skating import foot_skating
+    from jaxmotion.export.bvh import rig_bones
+    from jaxmotion.io import load_bvh
+
+    go, bp, tr = _params(3, 9, scale=0.8)
+    betas = np.random.default_rng(4).normal(size=10)
+    bvh = read_bvh(write_bvh(tmp_path / "m.bvh", go, bp, tr, betas, 30.0, skeleton=skeleton))
+    bones = rig_bones(skeleton)
+    assert list(bvh.names) == [b[0] for b in bones]  # the rig's names, depth first
+    parents = {b[0]: (bones[b[1]][0] if b[1] >= 0 else None) for b in bones}
+    assert [bvh.names[p] if p >= 0 else None for p in bvh.parents] == [
+        parents[n] for n in bvh.names]
+    if skeleton == "mixamo":
+        assert all(n.startswith("mixamorig:") for n in bvh.names) and len(bvh.names) == 22
+        assert parents["mixamorig:LeftArm"] == "mixamorig:LeftShoulder"
+        assert parents["mixamorig:LeftShoulder"] == "mixamorig:Spine2"
+    else:
+        assert bvh.names[:2] == ("root", "pelvis")
+        assert [parents[f"spine_0{i}"] for i in range(1, 6)] == [
+            "pelvis", "spine_01", "spine_02", "spine_03", "spine_04"]
+        assert parents["neck_02"] == "neck_01" and parents["head"] == "neck_02"
+        assert parents["clavicle_l"] == "spine_05" and parents["ball_r"] == "foot_r"
+        assert len(bvh.names) == 26
+    # every SMPL-X joint where the SMPL-X export puts it (centimetres, y up)
+    world = _bvh_world_joints(bvh) @ Y_UP / 100.0
+    at = {b[2]: i for i, b in enumerate(bones) if b[2] is not None}
+    expected = np.asarray(_joints(go, bp, tr, betas), np.float64)
+    np.testing.assert_allclose(world[:, [at[j] for j in range(22)]], expected, atol=1e-4)
+    # read back without a map (Mixamo's built-in one, UE5's automatic): the same joints,
+    # so the same foot skating
+    m = load_bvh(tmp_path / "m.bvh", first_frame="keep")
+    assert m.info["joint_map"] == ("mixamo" if skeleton == "mixamo" else "automatic")
+    np.testing.assert_allclose(m.joints, expected, atol=1e-4)
+    a = foot_skating(np.asarray(m.joints, np.float32))
+    b = foot_skating(np.asarray(expected, np.float32))
+    for key in a:
+        np.testing.assert_allclose(np.asarray(a[key]), np.asarray(b[key]), rtol=1e-5, atol=1e-6)
+
+
+def test_retarget_command_writes_each_rig_from_generate_and_amass_files(tmp_path, capsys):
+    from jaxmotion.cli import main
+    from jaxmotion.export import write_amass_npz
+
+    go, bp, tr = _params(5, 6, k=2)
+    betas = np.zeros((2, 10), np.float32)
+    np.savez(tmp_path / "motion.npz", global_orient=go, body_pose=bp, transl=tr, betas=betas,
+             fps=np.float32(30), joints=np.zeros((2, 6, 22, 3), np.float32))
+    write_amass_npz(tmp_path / "motion_smplx.npz", go[1], bp[1], tr[1], betas[1], 30.0)
+    assert main(["retarget", str(tmp_path / "motion.npz"), "--skeleton", "ue5", "--sample", "1",
+                 "--out", str(tmp_path / "a.bvh")]) == 0
+    assert main(["retarget", str(tmp_path / "motion_smplx.npz"), "--skeleton", "ue5",
+                 "--out", str(tmp_path / "b.bvh")]) == 0
+    a, b = read_bvh(tmp_path / "a.bvh"), read_bvh(tmp_path / "b.bvh")
+    assert a.names[:2] == ("root", "pelvis") and a.names == b.names
+    np.testing.assert_allclose(a.frames, b.frames, atol=1e-3)  # the same sample, two files
+    assert main(["retarget", str(tmp_path / "motion.npz"), "--skeleton", "mixamo",
+                 "--out", str(tmp_path / "c.bvh")]) == 0
+    assert read_bvh(tmp_path / "c.bvh").names[0] == "mixamorig:Hips"
+    capsys.readouterr()
+    assert main(["retarget", str(tmp_path / "motion.npz"), "--skeleton", "mixamo",
+                 "--sample", "2", "--out", str(tmp_path / "d.bvh")]) == 2
+    assert "samples 0..1" in capsys.readouterr().err and not (tmp_path / "d.bvh").exists()
+    assert main(["retarget", str(tmp_path / "motion.npz"), "--skeleton", "ue5",
+                 "--out", str(tmp_path / "e.fbx")]) == 2

@@ -15,6 +15,16 @@ product of its channels in the listed order, ``R = Rz(z) · Rx(x) · Ry(y)``, ac
 on column vectors (the usual BVH reading). Angles are unwrapped over time (no
 ±180° jumps) so that players interpolating them stay smooth.
 
+Other rigs
+----------
+``skeleton="mixamo"`` / ``"ue5"`` (:func:`rig_bones`) write the same body with the bone names
+and hierarchy of Mixamo's rig or Unreal Engine 5's Manny / Quinn, in centimetres; bones those
+rigs have and SMPL-X does not (UE5's ``root``, ``spine_02``, ``spine_04``, ``neck_02``) do not
+turn, so every SMPL-X joint is where the ``smplx`` file puts it. The rest pose stays the body's
+own (SMPL-X's T-pose, its proportions): a character with that rig is driven through its
+retargeting tools (Blender's Mixamo add-on, Unreal's IK Retargeter), which match the bones by
+name.
+
 Conventions
 -----------
 - Units: metres (``scale=100`` writes centimetres). Blender imports a metre file
@@ -52,7 +62,7 @@ from jaxmotion.geometry.skeleton import (
     rest_joints_host,
 )
 
-__all__ = ["BVH", "read_bvh", "write_bvh"]
+__all__ = ["BVH", "SKELETONS", "read_bvh", "rig_bones", "write_bvh"]
 
 _EULER = "ZXY"  # intrinsic (euler_zxy) = the order of the rotation channels
 _ROT_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
@@ -82,8 +92,67 @@ class BVH(NamedTuple):
     end_sites: tuple[tuple[int, tuple[float, float, float]], ...] = ()
 
 
+#: The skeletons :func:`write_bvh` writes: SMPL-X's own, and the bone names and hierarchy of
+#: the rigs animators use (:func:`rig_bones`).
+SKELETONS = ("smplx", "mixamo", "ue5")
+_MIXAMO_NAMES = ("Hips", "LeftUpLeg", "RightUpLeg", "Spine", "LeftLeg", "RightLeg", "Spine1",
+                 "LeftFoot", "RightFoot", "Spine2", "LeftToeBase", "RightToeBase", "Neck",
+                 "LeftShoulder", "RightShoulder", "Head", "LeftArm", "RightArm", "LeftForeArm",
+                 "RightForeArm", "LeftHand", "RightHand")
+_UE5_NAMES = ("pelvis", "thigh_l", "thigh_r", "spine_01", "calf_l", "calf_r", "spine_03",
+              "foot_l", "foot_r", "spine_05", "ball_l", "ball_r", "neck_01", "clavicle_l",
+              "clavicle_r", "head", "upperarm_l", "upperarm_r", "lowerarm_l", "lowerarm_r",
+              "hand_l", "hand_r")
+#: the default length unit (metres per file unit inverted: 100 = centimetres) of each
+_SKELETON_SCALE = {"smplx": 1.0, "mixamo": 100.0, "ue5": 100.0}
+
+
+def rig_bones(skeleton: str = "smplx") -> list[tuple[str, int, int | None, tuple | None]]:
+    """The bones of a skeleton in file (depth-first) order: ``(name, parent index in the list
+    or -1, the SMPL-X joint it is (or None), (a, b, f) for a bone placed the fraction f of the
+    way from SMPL-X joint a to b with no rotation of its own, or "origin")``.
+
+    - ``smplx``: SMPL-X's 22 body joints, named as SMPL-X and its Blender add-on.
+    - ``mixamo``: Mixamo's names with its ``mixamorig:`` prefix (``mixamorig:Hips``,
+      ``mixamorig:LeftUpLeg``, ..., ``mixamorig:LeftShoulder`` the collar): the same
+      hierarchy as SMPL-X's 22, joint for joint (Blender's Mixamo conventions).
+    - ``ue5``: Unreal Engine 5's Manny / Quinn names and hierarchy: ``root`` (at the origin,
+      not moving) > ``pelvis`` > ``spine_01`` … ``spine_05`` > ``neck_01`` > ``neck_02`` >
+      ``head``; ``clavicle_l`` > ``upperarm_l`` > ``lowerarm_l`` > ``hand_l``; ``thigh_l`` >
+      ``calf_l`` > ``foot_l`` > ``ball_l``. SMPL-X's spine1–3 are ``spine_01``, ``spine_03``,
+      ``spine_05``; ``spine_02``, ``spine_04`` and ``neck_02`` lie half way between their
+      neighbours and do not turn.
+    """
+    if skeleton not in SKELETONS:
+        raise ValueError(f"skeleton must be one of {', '.join(SKELETONS)}, got {skeleton!r}")
+    names = {"smplx": SMPLX_JOINT_NAMES, "ue5": _UE5_NAMES,
+             "mixamo": tuple(f"mixamorig:{n}" for n in _MIXAMO_NAMES)}[skeleton]
+    inserted = {}  # SMPL-X joint -> bone put between it and its parent
+    if skeleton == "ue5":
+        inserted = {6: ("spine_02", (3, 6, 0.5)), 9: ("spine_04", (6, 9, 0.5)),
+                    15: ("neck_02", (12, 15, 0.5))}
+    bones: list[tuple[str, int, int | None, tuple | None]] = []
+    if skeleton == "ue5":
+        bones.append(("root", -1, None, "origin"))
+
+    def emit(j: int, parent: int) -> None:
+        if j in inserted:
+            name, at = inserted[j]
+            bones.append((name, parent, None, at))
+            parent = len(bones) - 1
+        bones.append((names[j], parent, j, None))
+        me = len(bones) - 1
+        for c in range(NUM_JOINTS):
+            if PARENTS[c] == j:
+                emit(c, me)
+
+    emit(0, len(bones) - 1)
+    return bones
+
+
 def write_bvh(
-    path, global_orient, body_pose, transl, betas, fps: float, *, scale: float = 1.0
+    path, global_orient, body_pose, transl, betas, fps: float, *, scale: float | None = None,
+    skeleton: str = "smplx",
 ) -> Path:
     """Write one SMPL-X body motion as a BVH file (atomically); see the module docstring.
 
@@ -93,10 +162,16 @@ def write_bvh(
       transl: ``[T, 3]`` metres, jaxmotion's z-up world.
       betas: ``[B]`` (B ≤ 10) shape coefficients, or None for the neutral body.
       fps: frames per second.
-      scale: multiplies every length (1 = metres, 100 = centimetres).
+      scale: multiplies every length (1 = metres, 100 = centimetres); None: the skeleton's
+        own unit (metres for ``smplx``, centimetres for ``mixamo`` and ``ue5``).
+      skeleton: the bone names and hierarchy, :data:`SKELETONS` (:func:`rig_bones`); every
+        skeleton poses the same body (the same joint positions read back).
     Returns:
       the path written.
     """
+    bones = rig_bones(skeleton)
+    if scale is None:
+        scale = _SKELETON_SCALE[skeleton]
     go, bp, tr = smplx_motion(global_orient, body_pose, transl)
     if go.shape[0] != 1:
         raise ValueError(
@@ -119,22 +194,36 @@ def write_bvh(
     euler = np.unwrap(euler.reshape(t, NUM_JOINTS, 3), period=360.0, axis=0)
     root_pos = (rest[0] + tr) @ Z_UP_TO_Y_UP.T * scale
 
-    lines = ["HIERARCHY"]
-    order: list[int] = []  # joints in file (depth-first) order
+    def at(bone):  # a bone's rest position (SMPL-X's canonical frame, metres)
+        _, _, j, where = bone
+        if j is not None:
+            return rest[j]
+        if where == "origin":
+            return np.zeros(3)
+        a, b, f = where
+        return rest[a] + f * (rest[b] - rest[a])
 
-    def emit(j: int, pad: str) -> None:
-        order.append(j)
-        offset = np.zeros(3) if j == 0 else (rest[j] - rest[PARENTS[j]]) * scale
-        channels = _POS_CHANNELS + _ROT_CHANNELS if j == 0 else _ROT_CHANNELS
+    lines = ["HIERARCHY"]
+    columns: list[np.ndarray] = []
+    zeros = np.zeros((t, 3))
+
+    def emit(i: int, pad: str) -> None:
+        name, parent, j, where = bones[i]
+        moves = j == 0  # the pelvis carries the body's place and turn
+        offset = np.zeros(3) if parent < 0 or moves else (at(bones[i]) - at(bones[parent])) * scale
+        channels = _POS_CHANNELS + _ROT_CHANNELS if moves or parent < 0 else _ROT_CHANNELS
+        if moves or parent < 0:
+            columns.append(root_pos if moves else zeros)
+        columns.append(euler[:, j] if j is not None else zeros)
         lines.extend(
             [
-                f"{pad}{'ROOT' if j == 0 else 'JOINT'} {SMPLX_JOINT_NAMES[j]}",
+                f"{pad}{'ROOT' if parent < 0 else 'JOINT'} {name}",
                 f"{pad}{{",
                 f"{pad}  OFFSET {offset[0]:.6f} {offset[1]:.6f} {offset[2]:.6f}",
                 f"{pad}  CHANNELS {len(channels)} {' '.join(channels)}",
             ]
         )
-        children = [c for c in range(NUM_JOINTS) if PARENTS[c] == j]
+        children = [c for c in range(len(bones)) if bones[c][1] == i]
         for c in children:
             emit(c, pad + "  ")
         if not children:
@@ -150,7 +239,7 @@ def write_bvh(
         lines.append(f"{pad}}}")
 
     emit(0, "")
-    values = np.concatenate([root_pos] + [euler[:, j] for j in order], axis=1)
+    values = np.concatenate(columns, axis=1)
     lines += ["MOTION", f"Frames: {t}", f"Frame Time: {1.0 / fps:.8f}"]
     lines += [" ".join(row) for row in np.char.mod("%.6f", values)]
     with atomic_open(path, "w") as f:

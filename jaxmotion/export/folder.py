@@ -27,7 +27,7 @@ VIDEO_KINDS = (None, "gif", "mp4")
 
 
 def write_generation(res, out, *, video: str | None = "mp4", bvh_sample: int = 0,
-                     extra: dict | None = None) -> dict[str, Path]:
+                     extra: dict | None = None, skeleton: str = "smplx") -> dict[str, Path]:
     """Write the outputs into folder ``out`` (created); returns ``{name: path}``.
 
     ``motion.npz`` (every field), ``motion.bvh`` and ``motion_smplx.npz`` (sample
@@ -36,10 +36,16 @@ def write_generation(res, out, *, video: str | None = "mp4", bvh_sample: int = 0
     ``motion.gif`` (``video="mp4"|"gif"``, None to skip: the shaded mannequins in the lit
     room, 640×480 at 15 frames per second, :func:`jaxmotion.render.results.
     render_generation`; the other files are written while it draws) and ``viewer.html``;
+    ``skeleton``: the bone names and hierarchy of ``motion.bvh`` (:data:`jaxmotion.export.bvh.
+    SKELETONS`: ``smplx``, ``mixamo``, ``ue5``);
     ``extra``: more files ``{name: text or bytes}`` (plain names, no folders). Files are
     built in a temporary folder and moved in at the end, so an error leaves no half-written
     output.
     """
+    from jaxmotion.export.bvh import SKELETONS
+
+    if skeleton not in SKELETONS:
+        raise ValueError(f"skeleton must be one of {', '.join(SKELETONS)}, got {skeleton!r}")
     ids = [res.target_id, *(g["object"] for g in res.segments)]
     out = check_outputs(res.scene, ids, out=out, video=video, fit=bool(res.smplx),
                         sample=bvh_sample, samples=res.num_samples)
@@ -51,7 +57,7 @@ def write_generation(res, out, *, video: str | None = "mp4", bvh_sample: int = 0
     # step); into an existing folder each file is moved in whole, once all are built
     with tempfile.TemporaryDirectory(prefix=f".{out.name}.generate-", dir=parent) as tmp:
         tmp = Path(tmp)
-        _write_files(res, tmp, video, bvh_sample)
+        _write_files(res, tmp, video, bvh_sample, skeleton)
         for name, data in (extra or {}).items():
             if Path(name).name != name or name.startswith("."):
                 raise ValueError(f"extra file name {name!r} must be a plain file name")
@@ -69,7 +75,7 @@ def write_generation(res, out, *, video: str | None = "mp4", bvh_sample: int = 0
     return written
 
 
-def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
+def _write_files(res, tmp: Path, video, bvh_sample: int, skeleton: str = "smplx") -> None:
     from jaxmotion import export
 
     with open(tmp / "motion.npz", "wb") as f:
@@ -106,7 +112,7 @@ def _write_files(res, tmp: Path, video, bvh_sample: int) -> None:
         p = res.smplx
         i = int(bvh_sample)
         export.write_bvh(tmp / "motion.bvh", p["global_orient"][i], p["body_pose"][i],
-                         p["transl"][i], p["betas"][i], res.fps)
+                         p["transl"][i], p["betas"][i], res.fps, skeleton=skeleton)
         export.write_amass_npz(tmp / "motion_smplx.npz", p["global_orient"][i],
                                p["body_pose"][i], p["transl"][i], p["betas"][i], res.fps)
         keep = random_subset(res.scene.num_points, 60_000, res.seed)

@@ -399,6 +399,13 @@ def _rest_positions(bvh: BVH) -> np.ndarray:
     return np.concatenate([rest, np.reshape(ends, (-1, 3))], axis=0)
 
 
+def _mapping_pose(bvh: BVH, first: np.ndarray) -> np.ndarray:
+    """The pose an automatic joint mapping reads the body's shape from: the rest pose (a
+    first frame can be any pose), or the first frame when every ``OFFSET`` is zero."""
+    rest = _rest_positions(bvh)
+    return rest if np.abs(rest).max(initial=0.0) > 0 else np.asarray(first, np.float64)
+
+
 def _z_above(d: np.ndarray) -> bool:
     return bool(d[2] > 0 and d[2] > abs(d[1]) and d[2] > abs(d[0]))
 
@@ -484,7 +491,8 @@ def load_bvh(path, *, up: str = "auto", unit="auto", fps: float | None = None,
                               np.asarray([p for p, _ in bvh.end_sites], int)])
     mapped: dict = {}
     map_name, index = resolve_joint_map(names, joint_map, where=where, parents=parents,
-                                        positions=world[0], report=mapped)
+                                        positions=_mapping_pose(bvh, world[0]),
+                                        report=mapped)
     rest_dropped = first_frame == "auto" and _leading_rest_frame(bvh, world)
     if rest_dropped:
         world = world[1:]

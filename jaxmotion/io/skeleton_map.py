@@ -70,8 +70,9 @@ ROLES = {
     "forearm": {"forearm", "lowerarm", "elbow", "armlower", "loarm"},
     "hand": {"hand", "wrist"},
 }
-# fractions of the pelvis -> neck height where SMPL-X's spine1, spine2, spine3 sit
-_SPINE_AT = (0.21, 0.48, 0.62)
+# fractions of the pelvis -> neck height where SMPL-X's spine1, spine2, spine3 sit (its
+# neutral rest skeleton)
+_SPINE_AT = (0.2425, 0.5277, 0.6366)
 _CAMEL = re.compile(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+|[A-Z]+|\d+")
 
 
@@ -137,7 +138,8 @@ def auto_joint_map(names, parents, positions, *, where: str = "skeleton"):
     Args:
       names: joint names (End Sites as ``<parent>_End``), parents first.
       parents: ``[J]`` parent index (−1 for the root).
-      positions: ``[J, 3]`` the joints' positions in one pose (the first frame), file units.
+      positions: ``[J, 3]`` the joints' positions in the skeleton's rest pose (its offsets;
+        the first frame where the offsets are all zero), file units.
       where: the file, for messages.
     Returns:
       ``(index [22] int (−1: filled in), confidence float, notes list[str])``.

@@ -12,6 +12,7 @@ Licensed datasets are read from the user's own copy and never shipped with jaxmo
 
 from jaxmotion.io.amass import load_amass
 from jaxmotion.io.bvh import JOINT_MAPS, bvh_world_positions, load_bvh, resolve_joint_map
+from jaxmotion.io.gltf import load_gltf
 from jaxmotion.io.humanise import load_humanise
 from jaxmotion.io.humanml3d import (
     HUMANML3D_FPS,
@@ -35,6 +36,7 @@ __all__ = [
     "detect_format",
     "load_amass",
     "load_bvh",
+    "load_gltf",
     "load_humanise",
     "load_humanml3d",
     "load_motion",

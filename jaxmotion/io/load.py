@@ -7,6 +7,7 @@ from pathlib import Path
 
 from jaxmotion.io.amass import load_amass
 from jaxmotion.io.bvh import load_bvh
+from jaxmotion.io.gltf import load_gltf
 from jaxmotion.io.humanise import load_humanise
 from jaxmotion.io.humanml3d import load_humanml3d
 from jaxmotion.io.motion import Motion, MotionFormatError
@@ -15,15 +16,18 @@ __all__ = ["READERS", "detect_format", "load_motion"]
 
 READERS = {
     "bvh": load_bvh,
+    "gltf": load_gltf,
     "humanml3d": load_humanml3d,
     "amass": load_amass,
     "humanise": load_humanise,
 }
-_BY_SUFFIX = {".bvh": "bvh", ".npy": "humanml3d", ".npz": "amass", ".pkl": "humanise"}
+_BY_SUFFIX = {".bvh": "bvh", ".glb": "gltf", ".gltf": "gltf", ".npy": "humanml3d",
+              ".npz": "amass", ".pkl": "humanise"}
 
 
 def detect_format(path) -> str:
-    """The format of a motion file from its name: ``.bvh`` → bvh, ``.npy`` → humanml3d
+    """The format of a motion file from its name: ``.bvh`` → bvh, ``.glb`` / ``.gltf`` →
+    gltf (a skinned animation), ``.npy`` → humanml3d
     (``new_joints/<id>.npy``), ``.npz`` → amass, ``.pkl`` → humanise. Raises
     MotionFormatError for a folder or another extension."""
     path = Path(path)
@@ -35,7 +39,8 @@ def detect_format(path) -> str:
     fmt = _BY_SUFFIX.get(path.suffix.lower())
     if fmt is None:
         raise MotionFormatError(
-            f"{path}: unknown motion file type {path.suffix!r}; jaxmotion reads .bvh (BVH), .npy "
+            f"{path}: unknown motion file type {path.suffix!r}; jaxmotion reads .bvh (BVH), "
+            ".glb / .gltf (a skinned glTF animation), .npy "
             "(HumanML3D new_joints), .npz (AMASS) and .pkl (HUMANISE), or name the format "
             f"with format= one of {', '.join(READERS)}")
     return fmt

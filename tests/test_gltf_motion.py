@@ -106,3 +106,26 @@ def test_bad_gltf_files_are_refused_with_the_fix(glb, tmp_path):
     (tmp_path / "junk.glb").write_bytes(b"hello")
     with pytest.raises(MotionFormatError, match="neither a GLB nor a glTF"):
         load_gltf(tmp_path / "junk.glb")
+
+
+@pytest.mark.parametrize("skeleton, first, map_name", [("mixamo", "mixamorig:Hips", "mixamo"),
+                                                       ("ue5", "pelvis", "automatic")])
+def test_a_glb_in_a_rigs_names_reads_back_as_the_same_body(glb, tmp_path, skeleton, first,
+                                                           map_name):
+    _, joints = glb
+    rng = np.random.default_rng(0)  # the fixture's motion again
+    go = rng.normal(0, 0.3, (T, 3)).astype(np.float32)
+    bp = rng.normal(0, 0.25, (T, 21, 3)).astype(np.float32)
+    tr = np.cumsum(rng.normal(0, 0.02, (T, 3)), 0).astype(np.float32) + [1.0, 2.0, 0.0]
+    path = write_glb(tmp_path / "rig.glb", global_orient=go, body_pose=bp, transl=tr, fps=20.0,
+                     skeleton=skeleton)
+    gltf, _ = _chunks(path)
+    names = [gltf["nodes"][j]["name"] for j in gltf["skins"][0]["joints"]]
+    assert names[0] == first and len(names) == 52
+    assert ("mixamorig:LeftHandIndex1" if skeleton == "mixamo" else "index_01_l") in names
+    m = load_gltf(path)
+    assert m.info["joint_map"] == map_name
+    np.testing.assert_allclose(m.joints, joints, atol=1e-4)
+    with pytest.raises(ValueError, match="skeleton must be one of"):
+        write_glb(tmp_path / "x.glb", global_orient=go, body_pose=bp, transl=tr, fps=20.0,
+                  skeleton="maya")

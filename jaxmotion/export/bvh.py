@@ -62,7 +62,7 @@ from jaxmotion.geometry.skeleton import (
     rest_joints_host,
 )
 
-__all__ = ["BVH", "SKELETONS", "read_bvh", "rig_bones", "write_bvh"]
+__all__ = ["BVH", "SKELETONS", "read_bvh", "rig_bones", "rig_name", "write_bvh"]
 
 _EULER = "ZXY"  # intrinsic (euler_zxy) = the order of the rotation channels
 _ROT_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
@@ -105,6 +105,27 @@ _UE5_NAMES = ("pelvis", "thigh_l", "thigh_r", "spine_01", "calf_l", "calf_r", "s
               "hand_l", "hand_r")
 #: the default length unit (metres per file unit inverted: 100 = centimetres) of each
 _SKELETON_SCALE = {"smplx": 1.0, "mixamo": 100.0, "ue5": 100.0}
+
+
+def rig_name(smplx_name: str, skeleton: str) -> str:
+    """The name a skeleton gives an SMPL-X joint (``SMPLX_JOINT_NAMES``; the 22 body joints
+    as :func:`rig_bones`, and the fingers: Mixamo's ``mixamorig:LeftHandIndex1``, UE5's
+    ``index_01_l``); a joint the rig has no name for (SMPL-X's jaw and eyes) keeps its own."""
+    if skeleton not in SKELETONS:
+        raise ValueError(f"skeleton must be one of {', '.join(SKELETONS)}, got {skeleton!r}")
+    if skeleton == "smplx":
+        return smplx_name
+    body = list(SMPLX_JOINT_NAMES[:NUM_JOINTS])
+    if smplx_name in body:
+        j = body.index(smplx_name)
+        return f"mixamorig:{_MIXAMO_NAMES[j]}" if skeleton == "mixamo" else _UE5_NAMES[j]
+    side, _, finger = smplx_name.partition("_")  # left_index1
+    if side in ("left", "right") and finger[:-1] in ("index", "middle", "pinky", "ring",
+                                                     "thumb") and finger[-1:].isdigit():
+        if skeleton == "mixamo":
+            return f"mixamorig:{side.capitalize()}Hand{finger[:-1].capitalize()}{finger[-1]}"
+        return f"{finger[:-1]}_0{finger[-1]}_{side[0]}"
+    return smplx_name
 
 
 def rig_bones(skeleton: str = "smplx") -> list[tuple[str, int, int | None, tuple | None]]:

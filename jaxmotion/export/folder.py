@@ -119,7 +119,7 @@ def _write_files(res, tmp: Path, video, bvh_sample: int, skeleton: str = "smplx"
         xyz, rgb = res.scene.xyz[keep], res.scene.rgb[keep]
         export.write_glb(tmp / "motion.glb", global_orient=p["global_orient"],
                          body_pose=p["body_pose"], transl=p["transl"], betas=p["betas"],
-                         fps=res.fps, scene_xyz=xyz, scene_rgb=rgb)
+                         fps=res.fps, scene_xyz=xyz, scene_rgb=rgb, skeleton=skeleton)
         write_viewer(res, tmp / "viewer.html")
 
     if video:  # the fitted mannequins in the room (jaxmotion.render), the others beside it

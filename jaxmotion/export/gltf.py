@@ -161,6 +161,7 @@ def write_glb(
     scene_rgb=None,
     scene_faces=None,
     spacing: float = 0.0,
+    skeleton: str = "smplx",
 ) -> Path:
     """Write the skinned, animated body (one per sample) and the scene as ``.glb``, atomically.
 
@@ -177,11 +178,18 @@ def write_glb(
         vertex indices: a triangle mesh, else a point cloud.
       spacing: sample k is moved by ``k · spacing`` metres along world x (0 keeps
         every sample where it was generated, in the scene).
+      skeleton: the bones' names: SMPL-X's (default), Mixamo's (``mixamorig:Hips``, …,
+        ``mixamorig:LeftHandIndex1``) or Unreal Engine 5's (``pelvis``, ``thigh_l``, …,
+        ``index_01_l``) (:func:`jaxmotion.export.bvh.rig_name`); the hierarchy stays the
+        body's (UE5's extra ``root``, ``spine_02``, ``spine_04`` and ``neck_02`` are in its
+        BVH only).
     Returns:
       the path written. See the module docstring for the file's layout.
     """
     from jaxmotion.body.model import load_mannequin, shaped_rest_host
+    from jaxmotion.export.bvh import rig_name
 
+    rig_name("pelvis", skeleton)  # an unknown skeleton is refused before any work
     go, bp, tr = smplx_motion(global_orient, body_pose, transl)
     k, t = go.shape[:2]
     fps = check_fps(fps)
@@ -217,6 +225,7 @@ def write_glb(
         m = model if model is not None else load_mannequin(None if betas is None else betas[s])
         v_rest, j_rest = shaped_rest_host(m, None if betas is None else betas[s])
         keep, parents, column, names = _named_joints(m)
+        names = [rig_name(n, skeleton) for n in names]
         faces = np.asarray(m.faces, np.int64)
         normals = vertex_normals(v_rest, faces)
         normals[~np.any(normals, axis=1)] = [0.0, 1.0, 0.0]  # glTF wants unit normals everywhere

@@ -7,6 +7,7 @@ import os
 import socket
 import subprocess
 import sys
+import tempfile
 
 import numpy as np
 import pytest
@@ -79,13 +80,25 @@ def _batch(tmp_path, out, *extra, devices=1, cache=None):
     cmd = [sys.executable, "-m", "jaxmotion", "generate", "--batch",
            str(tmp_path / "cases.jsonl"), "--out", str(out), "--batch-size", "2",
            "--steps", "6", *extra]
-    return subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+    # output to files, not pipes: a process whose pipe nobody reads (the test waits on the
+    # other rank first) blocks once the pipe's buffer is full, and the other rank then
+    # waits at jax.distributed's shutdown barrier until it aborts
+    logs = tempfile.mkdtemp(dir=tmp_path, prefix="log-")
+    stdout = open(os.path.join(logs, "stdout"), "w+")
+    stderr = open(os.path.join(logs, "stderr"), "w+")
+    proc = subprocess.Popen(cmd, env=env, stdout=stdout, stderr=stderr, text=True)
+    proc.logs = (stdout, stderr)
+    return proc
 
 
 def _done(proc, timeout=900):
-    out, err = proc.communicate(timeout=timeout)
-    return proc.returncode, out, err
+    proc.wait(timeout=timeout)
+    texts = []
+    for f in proc.logs:
+        f.seek(0)
+        texts.append(f.read())
+        f.close()
+    return proc.returncode, texts[0], texts[1]
 
 
 def _joints(out, name):

@@ -118,7 +118,9 @@ __all__ = [
     "REQUIRED_JOINTS",
     "UNITS",
     "bvh_world_positions",
+    "detect_unit",
     "end_site_names",
+    "fill_missing_joints",
     "load_bvh",
     "resolve_joint_map",
 ]
@@ -371,7 +373,7 @@ def bvh_world_positions(bvh: BVH, *, where: str = "BVH", end_sites: bool = False
     return np.concatenate([pos, np.stack(ends, axis=1)], axis=1)
 
 
-def _fill_missing(joints: np.ndarray, index: np.ndarray) -> np.ndarray:
+def fill_missing_joints(joints: np.ndarray, index: np.ndarray) -> np.ndarray:
     """[T, 22, 3] with the unmapped joints placed on their chain (module docstring)."""
     rest = rest_joints_host()
     bone = np.r_[0.0, np.linalg.norm(rest[1:] - rest[list(PARENTS[1:])], axis=1)]
@@ -419,7 +421,7 @@ def _detect_up(bvh: BVH, world: np.ndarray, index: np.ndarray) -> str:
     return "z" if _z_above(posed) and _z_above(rest[head] - rest[pelvis]) else "y"
 
 
-def _detect_unit(joints0: np.ndarray, where: str) -> float:
+def detect_unit(joints0: np.ndarray, where: str) -> float:
     """Metres per file unit from the first frame's ankle-to-head chain (module docstring)."""
     rest = rest_joints_host()
     chain = list(_HEIGHT_CHAIN)
@@ -498,11 +500,11 @@ def load_bvh(path, *, up: str = "auto", unit="auto", fps: float | None = None,
         world = world[1:]
     joints = np.zeros((world.shape[0], NUM_JOINTS, 3))
     joints[:, index >= 0] = world[:, index[index >= 0]]
-    joints = _fill_missing(joints, index)
+    joints = fill_missing_joints(joints, index)
     if up == "auto":
         up = _detect_up(bvh, world, index)
     if unit == "auto":
-        scale = _detect_unit(joints[0], where)
+        scale = detect_unit(joints[0], where)
     else:
         try:
             scale = float(unit)

@@ -164,7 +164,7 @@ def load_gltf(path, *, skin: int | None = None, animation: int = 0, fps: float |
     Raises MotionFormatError naming the file and the fix.
     """
     from jaxmotion.geometry.skeleton import JOINT_NAMES, NUM_JOINTS
-    from jaxmotion.io.bvh import _detect_unit, _fill_missing, resolve_joint_map
+    from jaxmotion.io.bvh import detect_unit, fill_missing_joints, resolve_joint_map
 
     path = Path(path)
     where = str(path)
@@ -277,11 +277,11 @@ def load_gltf(path, *, skin: int | None = None, animation: int = 0, fps: float |
                                         report=report)
     out = np.zeros((world.shape[0], NUM_JOINTS, 3))
     out[:, index >= 0] = world[:, index[index >= 0]]
-    out = _fill_missing(out, index)
+    out = fill_missing_joints(out, index)
     if up == "auto":  # glTF is y-up; a file whose body stands along z says otherwise
         d = np.median(out[:, 15] - out[:, 0], axis=0)
         up = "z" if d[2] > abs(d[1]) and d[2] > abs(d[0]) else "y"
-    scale = _detect_unit(out[0], where) if unit == "auto" else float(unit)
+    scale = detect_unit(out[0], where) if unit == "auto" else float(unit)
     if not (np.isfinite(scale) and scale > 0):
         raise MotionFormatError(f"{where}: unit must be 'auto' or a positive number, got {unit!r}")
     out = out * scale

@@ -178,10 +178,10 @@ def _cmd_data_convert(args: argparse.Namespace) -> int:
                "fit_iters": args.fit_iters, "floor": not args.keep_height}
     if args.fps is not None:
         options["fps"] = args.fps
-    if args.kind == "bvh":
+    if args.kind in ("bvh", "gltf"):
         options.update(up=args.up, unit=args.unit, joint_map=args.joint_map)
     elif (args.up, args.unit, args.joint_map) != ("auto", "auto", "auto"):
-        raise ValueError("--up, --unit and --joint-map apply to BVH files only")
+        raise ValueError("--up, --unit and --joint-map apply to BVH and glTF files only")
     manifest = convert(args.kind, args.src, args.out, stats=not args.no_stats, **options)
     src = manifest["sources"]
     print(f"dataset in {args.out}: samples {manifest['samples']}, sources {src['done']} of "
@@ -645,7 +645,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     q.add_argument("src", help="the source file or folder")
     q.add_argument("--from", dest="kind", required=True,
-                   choices=("humanml3d", "amass", "bvh", "humanise"), help="the source format")
+                   choices=("humanml3d", "amass", "bvh", "gltf", "humanise"),
+                   help="the source format (gltf: skinned .glb / .gltf animations)")
     q.add_argument("--scannet", default=None, metavar="DIR",
                    help="HUMANISE: your ScanNet folder holding scans/<scene_id>/ (required)")
     q.add_argument("--points", type=int, default=None,

@@ -129,3 +129,22 @@ def test_a_glb_in_a_rigs_names_reads_back_as_the_same_body(glb, tmp_path, skelet
     with pytest.raises(ValueError, match="skeleton must be one of"):
         write_glb(tmp_path / "x.glb", global_orient=go, body_pose=bp, transl=tr, fps=20.0,
                   skeleton="maya")
+
+
+def test_data_convert_reads_a_folder_of_glb_files(glb, tmp_path, capsys):
+    from jaxmotion.cli import main
+    from jaxmotion.data import Dataset, load_sample
+
+    path, joints = glb
+    src = tmp_path / "takes"
+    (src / "sub").mkdir(parents=True)
+    (src / "sub" / "a.glb").write_bytes(path.read_bytes())
+    out = tmp_path / "data"
+    assert main(["data", "convert", "--from", "gltf", str(src), "--out", str(out), "--split",
+                 "val", "--fit-iters", "0", "--min-frames", "4", "--fps", "20",
+                 "--keep-height", "--no-stats"]) == 0, capsys.readouterr().err
+    s = load_sample(Dataset(out, "val").files[0])
+    assert s["joints"].shape == (T, 22, 3)
+    # the clip is moved to the origin, as every converted clip is
+    np.testing.assert_allclose(s["joints"] - s["joints"][0, 0], joints - joints[0, 0],
+                               atol=1e-3)

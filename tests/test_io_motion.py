@@ -603,4 +603,4 @@ def test_convert_amass_and_bvh_from_the_command_line(tmp_path, capsys):
     assert len(err) == 1 and "no such file or folder" in err[0]
     assert main(["data", "convert", "--from", "amass", str(bvh_dir), "--out", str(out),
                  "--unit", "0.01"]) == 2
-    assert "BVH files only" in capsys.readouterr().err
+    assert "BVH and glTF files only" in capsys.readouterr().err

@@ -76,10 +76,11 @@ from jaxmotion.scene.io import Scene, save_scene
 __all__ = ["CONVERT_KINDS", "FLOOR_SCENE_ID", "ConvertSettings", "check_out_folder", "convert",
            "finished_source", "floor_scene", "source_key"]
 
-CONVERT_KINDS = ("humanml3d", "amass", "bvh")
+CONVERT_KINDS = ("humanml3d", "amass", "bvh", "gltf")
 FLOOR_SCENE_ID = "floor"
 FORMAT_VERSION = 1
-_READER_OPTIONS = {"bvh": ("up", "unit", "joint_map"), "amass": (), "humanml3d": ()}
+_READER_OPTIONS = {"bvh": ("up", "unit", "joint_map"), "gltf": ("up", "unit", "joint_map"),
+                   "amass": (), "humanml3d": ()}
 _FEET = (10, 11)
 
 
@@ -166,11 +167,11 @@ def _sources(settings: ConvertSettings, src: Path) -> list[tuple[str, str, Path]
         else:
             out = [(p.stem, _hash_split(p.stem), p) for p in sorted(folder.glob("*.npy"))]
     else:
-        suffix = ".npz" if kind == "amass" else ".bvh"
+        suffixes = {"amass": (".npz",), "gltf": (".glb", ".gltf")}.get(kind, (".bvh",))
         if src.is_file():
             files, base = [src], src.parent
         else:
-            files = sorted(p for p in src.rglob("*") if p.suffix.lower() == suffix
+            files = sorted(p for p in src.rglob("*") if p.suffix.lower() in suffixes
                            and p.is_file() and p.name != "shape.npz")
             base = src
         out = []

@@ -199,10 +199,12 @@ def generate_batch(cases, out, *, options=None, video: str | None = None,
     if out.exists() and not out.is_dir():
         raise GenerateError(f"--out {out} is a file; give a folder")
     check_outputs(video=video)
-    from jaxmotion.export.bvh import SKELETONS
+    from jaxmotion.export.bvh import check_skeleton
 
-    if skeleton not in SKELETONS:
-        raise GenerateError(f"skeleton must be one of {', '.join(SKELETONS)}, got {skeleton!r}")
+    try:
+        check_skeleton(skeleton)
+    except ValueError as e:
+        raise GenerateError(str(e)) from e
     models = check_models(opts)
     rank, ranks = jax.process_index(), jax.process_count()
     mine = todo[rank::ranks]

@@ -29,61 +29,53 @@ LEFT = {"collar": ("top", (3, 10, 0)), "shoulder": ("collar", (12, 0, -1)),
         "ankle": ("knee", (0, -40, -3)), "toe": ("ankle", (0, -7, 13))}
 
 
+ROLES = ("collar", "shoulder", "elbow", "wrist", "hip", "knee", "ankle", "toe")
+
+
+def _limbs(pattern, words):
+    """``{role: (left name, right name)}``: ``pattern`` formatted with each role's word ``n``
+    and the side as ``L`` (``L`` / ``R``), ``Left`` (``Left`` / ``Right``) or ``l``."""
+    sides = ({"L": "L", "Left": "Left", "l": "l"}, {"L": "R", "Left": "Right", "l": "r"})
+    return {r: tuple(pattern.format(n=n, **side) for side in sides)
+            for r, n in zip(ROLES, words)}
+
+
 def _convention(style):
     """``(spine names bottom-up, neck names, head, pelvis, {role: (left, right)}, root
     above the pelvis or None, helper bones [(parent role, name)], 6 channels everywhere)``."""
-    lr = lambda f: (f("L", "Left", "l"), f("R", "Right", "r"))
     if style == "issue":  # the issue's example
-        names = {"collar": lr(lambda a, b, c: f"Shoulder_{a}"),
-                 "shoulder": lr(lambda a, b, c: f"UpperArm_{a}"),
-                 "elbow": lr(lambda a, b, c: f"LowerArm_{a}"),
-                 "wrist": lr(lambda a, b, c: f"Hand_{a}"),
-                 "hip": lr(lambda a, b, c: f"UpperLeg_{a}"),
-                 "knee": lr(lambda a, b, c: f"LowerLeg_{a}"),
-                 "ankle": lr(lambda a, b, c: f"Foot_{a}"),
-                 "toe": lr(lambda a, b, c: f"Toes_{a}")}
+        names = _limbs("{n}_{L}", ("Shoulder", "UpperArm", "LowerArm", "Hand", "UpperLeg",
+                                   "LowerLeg", "Foot", "Toes"))
         return ["Spine", "Chest"], ["Neck"], "Head", "Hips", names, None, [], True
     if style == "ue5":
-        names = {r: lr(lambda a, b, c, n=n: f"{n}_{c}") for r, n in (
-            ("collar", "clavicle"), ("shoulder", "upperarm"), ("elbow", "lowerarm"),
-            ("wrist", "hand"), ("hip", "thigh"), ("knee", "calf"), ("ankle", "foot"),
-            ("toe", "ball"))}
+        names = _limbs("{n}_{l}", ("clavicle", "upperarm", "lowerarm", "hand", "thigh", "calf",
+                                   "foot", "ball"))
         helpers = [("shoulder", "upperarm_twist_01_l"), ("elbow", "lowerarm_twist_01_l"),
                    ("hip", "thigh_twist_01_l"), ("knee", "calf_twist_01_l"),
                    ("shoulder_r", "upperarm_twist_01_r"), ("hip_r", "thigh_twist_01_r")]
         return ([f"spine_0{i}" for i in range(1, 6)], ["neck_01", "neck_02"], "head", "pelvis",
                 names, "root", helpers, False)
     if style == "unity":
-        names = {r: lr(lambda a, b, c, n=n: f"{b}{n}") for r, n in (
-            ("collar", "Shoulder"), ("shoulder", "UpperArm"), ("elbow", "LowerArm"),
-            ("wrist", "Hand"), ("hip", "UpperLeg"), ("knee", "LowerLeg"), ("ankle", "Foot"),
-            ("toe", "Toes"))}
+        names = _limbs("{Left}{n}", ("Shoulder", "UpperArm", "LowerArm", "Hand", "UpperLeg",
+                                     "LowerLeg", "Foot", "Toes"))
         return ["Spine", "Chest", "UpperChest"], ["Neck"], "Head", "Hips", names, None, [], False
     if style == "biped":
-        names = {r: lr(lambda a, b, c, n=n: f"Bip01_{a}_{n}") for r, n in (
-            ("collar", "Clavicle"), ("shoulder", "UpperArm"), ("elbow", "Forearm"),
-            ("wrist", "Hand"), ("hip", "Thigh"), ("knee", "Calf"), ("ankle", "Foot"),
-            ("toe", "Toe0"))}
+        names = _limbs("Bip01_{L}_{n}", ("Clavicle", "UpperArm", "Forearm", "Hand", "Thigh",
+                                         "Calf", "Foot", "Toe0"))
         return (["Bip01_Spine", "Bip01_Spine1", "Bip01_Spine2"], ["Bip01_Neck"], "Bip01_Head",
                 "Bip01_Pelvis", names, "Bip01", [], False)
     if style == "blender":
-        names = {r: lr(lambda a, b, c, n=n: f"{n}.{a}") for r, n in (
-            ("collar", "shoulder"), ("shoulder", "upper_arm"), ("elbow", "forearm"),
-            ("wrist", "hand"), ("hip", "thigh"), ("knee", "shin"), ("ankle", "foot"),
-            ("toe", "toe"))}
+        names = _limbs("{n}.{L}", ("shoulder", "upper_arm", "forearm", "hand", "thigh", "shin",
+                                   "foot", "toe"))
         return ["spine", "chest"], ["neck"], "head", "hips", names, None, [], False
     if style == "humanik":
-        names = {r: lr(lambda a, b, c, n=n: f"Character1_{b}{n}") for r, n in (
-            ("collar", "Shoulder"), ("shoulder", "Arm"), ("elbow", "ForeArm"),
-            ("wrist", "Hand"), ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"),
-            ("toe", "ToeBase"))}
+        names = _limbs("Character1_{Left}{n}", ("Shoulder", "Arm", "ForeArm", "Hand", "UpLeg",
+                                                "Leg", "Foot", "ToeBase"))
         return (["Character1_Spine", "Character1_Spine1"], ["Character1_Neck"],
                 "Character1_Head", "Character1_Hips", names, None, [], False)
     if style == "rokoko":
-        names = {r: lr(lambda a, b, c, n=n: f"{b}{n}") for r, n in (
-            ("collar", "Shoulder"), ("shoulder", "Arm"), ("elbow", "ForeArm"),
-            ("wrist", "Hand"), ("hip", "Thigh"), ("knee", "Shin"), ("ankle", "Foot"),
-            ("toe", "Toe"))}
+        names = _limbs("{Left}{n}", ("Shoulder", "Arm", "ForeArm", "Hand", "Thigh", "Shin",
+                                     "Foot", "Toe"))
         return ["Spine1", "Spine2", "Spine3", "Spine4"], ["Neck"], "Head", "Hips", names, None, \
             [], False
     if style == "smplx":  # the reference: SMPL-X's own names (a built-in map)

@@ -62,7 +62,8 @@ from jaxmotion.geometry.skeleton import (
     rest_joints_host,
 )
 
-__all__ = ["BVH", "SKELETONS", "read_bvh", "rig_bones", "rig_name", "write_bvh"]
+__all__ = ["BVH", "SKELETONS", "check_skeleton", "read_bvh", "rig_bones", "rig_name",
+           "write_bvh"]
 
 _EULER = "ZXY"  # intrinsic (euler_zxy) = the order of the rotation channels
 _ROT_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
@@ -107,12 +108,18 @@ _UE5_NAMES = ("pelvis", "thigh_l", "thigh_r", "spine_01", "calf_l", "calf_r", "s
 _SKELETON_SCALE = {"smplx": 1.0, "mixamo": 100.0, "ue5": 100.0}
 
 
+def check_skeleton(skeleton: str) -> str:
+    """``skeleton`` if it is one of :data:`SKELETONS`, else ValueError naming them."""
+    if skeleton not in SKELETONS:
+        raise ValueError(f"skeleton must be one of {', '.join(SKELETONS)}, got {skeleton!r}")
+    return skeleton
+
+
 def rig_name(smplx_name: str, skeleton: str) -> str:
     """The name a skeleton gives an SMPL-X joint (``SMPLX_JOINT_NAMES``; the 22 body joints
     as :func:`rig_bones`, and the fingers: Mixamo's ``mixamorig:LeftHandIndex1``, UE5's
     ``index_01_l``); a joint the rig has no name for (SMPL-X's jaw and eyes) keeps its own."""
-    if skeleton not in SKELETONS:
-        raise ValueError(f"skeleton must be one of {', '.join(SKELETONS)}, got {skeleton!r}")
+    check_skeleton(skeleton)
     if skeleton == "smplx":
         return smplx_name
     body = list(SMPLX_JOINT_NAMES[:NUM_JOINTS])
@@ -144,8 +151,7 @@ def rig_bones(skeleton: str = "smplx") -> list[tuple[str, int, int | None, tuple
       ``spine_05``; ``spine_02``, ``spine_04`` and ``neck_02`` lie half way between their
       neighbours and do not turn.
     """
-    if skeleton not in SKELETONS:
-        raise ValueError(f"skeleton must be one of {', '.join(SKELETONS)}, got {skeleton!r}")
+    check_skeleton(skeleton)
     names = {"smplx": SMPLX_JOINT_NAMES, "ue5": _UE5_NAMES,
              "mixamo": tuple(f"mixamorig:{n}" for n in _MIXAMO_NAMES)}[skeleton]
     inserted = {}  # SMPL-X joint -> bone put between it and its parent
@@ -229,7 +235,7 @@ def write_bvh(
     zeros = np.zeros((t, 3))
 
     def emit(i: int, pad: str) -> None:
-        name, parent, j, where = bones[i]
+        name, parent, j, _ = bones[i]
         moves = j == 0  # the pelvis carries the body's place and turn
         offset = np.zeros(3) if parent < 0 or moves else (at(bones[i]) - at(bones[parent])) * scale
         channels = _POS_CHANNELS + _ROT_CHANNELS if moves or parent < 0 else _ROT_CHANNELS

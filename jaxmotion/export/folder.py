@@ -42,10 +42,9 @@ def write_generation(res, out, *, video: str | None = "mp4", bvh_sample: int = 0
     built in a temporary folder and moved in at the end, so an error leaves no half-written
     output.
     """
-    from jaxmotion.export.bvh import SKELETONS
+    from jaxmotion.export.bvh import check_skeleton
 
-    if skeleton not in SKELETONS:
-        raise ValueError(f"skeleton must be one of {', '.join(SKELETONS)}, got {skeleton!r}")
+    check_skeleton(skeleton)
     ids = [res.target_id, *(g["object"] for g in res.segments)]
     out = check_outputs(res.scene, ids, out=out, video=video, fit=bool(res.smplx),
                         sample=bvh_sample, samples=res.num_samples)

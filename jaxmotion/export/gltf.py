@@ -187,9 +187,9 @@ def write_glb(
       the path written. See the module docstring for the file's layout.
     """
     from jaxmotion.body.model import load_mannequin, shaped_rest_host
-    from jaxmotion.export.bvh import rig_name
+    from jaxmotion.export.bvh import check_skeleton, rig_name
 
-    rig_name("pelvis", skeleton)  # an unknown skeleton is refused before any work
+    check_skeleton(skeleton)  # refused before any work
     go, bp, tr = smplx_motion(global_orient, body_pose, transl)
     k, t = go.shape[:2]
     fps = check_fps(fps)

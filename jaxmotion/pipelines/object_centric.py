@@ -439,7 +439,7 @@ class ObjectCentricPipeline:
             base, null = self._conditions(p, n, t, e, bt, mk, a)
             out = self._complete(jax.random.split(k)[1], base, null, p, n, tr, bt, completion,
                                  keep_trajectory, None, None, foot_guidance, traj_sensor_on,
-                                 fd, body_clearance if fd is not None else 0.0)
+                                 fd, body_clearance)
             return out["joints"], out["motion"]
 
         per_candidate = jax.vmap(one, in_axes=(0, 0) + (None,) * 8)

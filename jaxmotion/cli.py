@@ -683,7 +683,8 @@ def build_parser() -> argparse.ArgumentParser:
     q = data_sub.add_parser(
         "inspect", help="show how a motion file is read (joint mapping, unit, up axis, rate)",
         description="Read one motion file (BVH, AMASS .npz, HumanML3D .npy, ...) as 'data "
-        "convert' would and print, as JSON: frames, frame rate, unit, up axis, body height, "
+        "convert' would and print, as JSON: frames, frame rate, unit, up axis, body height "
+        "(first frame: the head joint above the lowest foot, plus 10 cm for the crown), "
         "the lowest foot and, for a BVH, the joint of the file each SMPL-X joint is read "
         "from (the joint map found, automatic when no built-in one names the skeleton) and "
         "the mapping's confidence. A skeleton that cannot be mapped with confidence is an "

@@ -367,20 +367,23 @@ class ObjectCentricPipeline:
         that load side by side as ``generate``'s do; the same motions).
 
         Args:
-          key: PRNG key; points, normals ``[B, N, 3]``; target ``[B, N]`` bool (the target
-          object's points); text_emb ``[B, text_dim]``; betas ``[B, 10]``; mask ``[B, T]``;
-          trajectory, completion: the two stages' samplers; anchor_first ``[B]`` bool or None
-          (as :func:`~jaxmotion.pipelines.affordance.select_motion`, which picks among the
-          candidates: never a teleporting one while another is smooth; of those near enough
-          the target at the anchor frame, the one whose feet slide, hover or sink in the
-          fewest frames); keep_trajectory, anchor_guidance, standing_guidance,
-          foot_guidance, body_clearance, traj_sensor_on, clearance: as
-          :meth:`sample_one`; action: ``[B]`` int indices into ``ACTION_CLASSES`` (None:
-          unknown); fields: ``[B, *FIELD_SHAPE]`` each crop's obstacle distance field
-          (:func:`jaxmotion.diffusion.body_clearance.room_field`; None: no body clearance);
-          avoid: ``[B, N]`` bool or None, the points a body must keep out of
-          (furniture): among the plausible candidates, those touching them in the fewest
-          frames compete.
+          key: PRNG key.
+          points, normals: ``[B, N, 3]`` crop points and normals.
+          target: ``[B, N]`` bool, the target object's points.
+          text_emb: ``[B, text_dim]``; betas: ``[B, 10]``; mask: ``[B, T]``.
+          trajectory, completion: the two stages' samplers.
+          anchor_first: ``[B]`` bool or None (as
+            :func:`~jaxmotion.pipelines.affordance.select_motion`, which picks among the
+            candidates: never a teleporting one while another is smooth; of those near enough
+            the target at the anchor frame, the one whose feet slide, hover or sink in the
+            fewest frames).
+          keep_trajectory, anchor_guidance, standing_guidance: as :meth:`sample_one`.
+          foot_guidance, body_clearance, traj_sensor_on, clearance: as :meth:`sample_one`.
+          action: ``[B]`` int indices into ``ACTION_CLASSES`` (None: unknown).
+          fields: ``[B, *FIELD_SHAPE]`` each crop's obstacle distance field
+            (:func:`jaxmotion.diffusion.body_clearance.room_field`; None: no body clearance).
+          avoid: ``[B, N]`` bool or None, the points a body must keep out of (furniture):
+            among the plausible candidates, those touching them in the fewest frames compete.
         Returns:
           ``{"joints": [B, T, 22, 3], "motion": [B, T, 135]}`` (the kept candidates' joints
           and motion features) in the crop frame.

@@ -6,7 +6,7 @@ the other furniture?
 ROOM: any file ``jaxmotion generate --scene`` reads (a ScanNet ``*_vh_clean_2.ply`` or its
 ``labels.ply``, a PLY / OBJ / GLB of a phone scan, ...). No scan ships with jaxmotion (their
 licences forbid it); public samples that repositories carry are listed in
-``docs/results.md`` ("Real scans"). ``--strip-labels`` also runs each room as a plain point
+``docs/benchmarks.md`` ("Real scans"). ``--strip-labels`` also runs each room as a plain point
 cloud (xyz and colour only, written to a temporary PLY), as a user's unlabelled scan is.
 
 Per room (version) and seed, six instructions: "sit on the chair", "sit on the sofa", "have a

@@ -8,7 +8,7 @@ the network (a 2 m cube of 8³ voxels per frame). Pose features weigh ``pose_wei
 the L1 loss, as the paper. ``joint_weight``, ``foot_contact_weight`` and
 ``joint_velocity_weight`` add geometric terms on the forward kinematics of the prediction
 (joint positions, MDM's foot contact, joint velocities; 0 by default); the shipped model was
-fine-tuned with 200 / 3 / 2 (docs/results.md, "The completion model's legs").
+fine-tuned with 200 / 3 / 2 (docs/results.md in the git history, "The completion model's legs").
 ``model.traj_velocity=true`` gives each frame's trajectory token the root's motion in the
 body's heading frame as well (where a walk's steps show). With ``init_from`` a model without
 the velocity or the trajectory sensor grows the switched-on inputs at zero weight (it starts

@@ -26,15 +26,15 @@ __all__ = [
 
 DEFAULT_TEXT = "sit on the chair next to the table"
 #: Classifier-free guidance scales (ADM, AMDM) of the shipped checkpoints, chosen on the
-#: synthetic validation split (docs/results.md, "Guidance"): w = 5 on the ADM sharpens its maps;
-#: guiding the AMDM made motions end farther away.
+#: synthetic validation split (docs/results.md in the git history, "Guidance"): w = 5 on the
+#: ADM sharpens its maps; guiding the AMDM made motions end farther away.
 DEFAULT_GUIDANCE: tuple[float, float] = (5.0, 1.0)
 #: Strength of affordance-consistency guidance on the AMDM (0 = off; see
 #: :mod:`jaxmotion.diffusion.affordance_guidance`), chosen on the validation split
-#: (docs/results.md, "Consistency guidance").
+#: (docs/results.md in the git history, "Consistency guidance").
 DEFAULT_CONSISTENCY: float = 0.5
 #: ADM maps drawn per sample once the target object is known; the one lighting it most is kept
-#: (docs/results.md, "The generate protocol").
+#: (docs/results.md in the git history, "The generate protocol").
 DEFAULT_ADM_CANDIDATES: int = 16
 #: DDIM steps of the affordance stage: how often the ADM's maps light the target depends on how
 #: many are drawn, not on their steps (3 to 20), so the time buys candidates.
@@ -42,7 +42,8 @@ DEFAULT_ADM_STEPS: int = 5
 #: DDIM steps of the motion stage (AMDM).
 DEFAULT_STEPS: int = 20
 #: Motions drawn per sample from its map once the target object is known; the one whose body
-#: comes closest to the target at the anchor frame is kept (docs/results.md, "Best of M motions").
+#: comes closest to the target at the anchor frame is kept (docs/results.md in the git
+#: history, "Best of M motions").
 DEFAULT_MOTION_CANDIDATES: int = 4
 MAX_SAMPLES = 256
 MAX_ADM_CANDIDATES = 32
@@ -52,7 +53,7 @@ MAX_MOTION_CANDIDATES = 16
 GROUNDINGS = ("auto", "adm", "llm")
 #: The generation pipelines (``pipeline`` option); the first is the default: ``auto`` runs the
 #: object-centric pipeline when the text's target object is found (no teleports, the action
-#: done on the target; docs/results.md) and the affordance pipeline otherwise. ``cvae`` is the
+#: done on the target; docs/benchmarks.md) and the affordance pipeline otherwise. ``cvae`` is the
 #: HUMANISE baseline, run only when asked for (its weights are the user's: none ship).
 PIPELINES = ("auto", "affordance", "object-centric", "cvae")
 

@@ -22,7 +22,7 @@ body's joint rotations lower
   :data:`SINK_FRAMES`, not by the motion's length), in every action: a body perched on a
   seat too high for its legs had its toes 7–12 cm in the floor for 20 frames, and the
   floor term, a mean over the motion's frames, moved them 2 cm. Feet above the floor give
-  it exactly nothing (``docs/results.md``, "Feet out of the floor: the sink term");
+  it exactly nothing (``docs/results.md`` (git history), "Feet out of the floor: the sink term");
 - **fast**: how far each foot joint moves faster than :data:`FAST_SPEED` between two frames,
   in units of :data:`FAST_SCALE`, squared and summed as the sink term: on real beds, the legs
   swung up onto the mattress at 9.0 m/s, the teleport threshold; a walking foot (3–5 m/s) is
@@ -75,8 +75,8 @@ STEP = 1.0
 SMOOTHING = 2.0
 #: The samplers apply it at the reverse steps whose noise level is under this fraction of the
 #: schedule's steps (the late steps, where the body's pose is being settled: 6 of DDIM-20's
-#: 20, for the cost of 6 rather than 20; see ``docs/results.md``, "Foot guidance on the late
-#: steps only").
+#: 20, for the cost of 6 rather than 20; see ``docs/results.md`` (git history), "Foot guidance
+#: on the late steps only").
 ACTIVE_FRACTION = 0.3
 
 _LIE = ACTION_CLASSES.index("lie")

@@ -3,9 +3,9 @@
 An x0 loss on absolute joint positions alone cannot tell a smooth path from one that holds
 still and then jumps: with ~12 cm of position error per frame, 15–20 cm stairs cost no more
 than a smooth walk, and a model trained on it writes its own fine timing as holds and jumps
-(docs/results.md, "Why the motions teleport"). These terms compare the *motion* instead:
-per-frame joint velocities and accelerations of the prediction against the data's, in
-physical units, over valid frames only.
+(docs/results.md in the git history, "Why the motions teleport"). These terms compare the
+*motion* instead: per-frame joint velocities and accelerations of the prediction against the
+data's, in physical units, over valid frames only.
 
 Both take the motions in metres, ``[B, T, J, 3]`` (de-normalise the model's features first:
 for z-scored absolute positions, ``x * std`` — the mean cancels in differences), the frame

@@ -4,7 +4,7 @@ A checkpoint folder (the shipped ``jaxmotion/assets`` too) holds ``adm.safetenso
 ``amdm.safetensors``, and optionally ``adm_text.safetensors`` (:data:`TEXT_ADM`): the ADM used
 when no target object is known, beside an ``adm.safetensors`` that reads one
 (``model.target_input``; told no target, such an ADM draws worse maps than one trained on the
-text alone: docs/results.md, "The ADM told the target").
+text alone: docs/results.md in the git history, "The ADM told the target").
 """
 
 from __future__ import annotations

@@ -212,10 +212,10 @@ class ObjectCentricPipeline:
             furniture (:mod:`jaxmotion.diffusion.clearance`; False: the model's own path).
           traj_sensor_on: where a completion model with ``traj_sensor`` places the
             trajectory sensor: ``"trajectory"``, on the stage-1 trajectory once (the default:
-            the same scores for half the sampling time, docs/results.md, "The trajectory
-            sensor: trainable, and where it sits"), or ``"estimate"``, on the trajectory of
-            the current noisy sample at every denoising step (the authors' code). Models
-            without the sensor ignore it.
+            the same scores for half the sampling time; docs/results.md in the git
+            history, "The trajectory sensor: trainable, and where it sits"), or
+            ``"estimate"``, on the trajectory of the current noisy sample at every denoising
+            step (the authors' code). Models without the sensor ignore it.
         Returns:
           ``{"trajectory" [T, 9], "motion" [T, 135], "joints" [T, 22, 3]}`` in metres, crop
           frame; frames outside ``mask`` are not meaningful.

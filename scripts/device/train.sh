@@ -1,7 +1,7 @@
 #!/bin/bash
 # One device call of an ADM (TASK=adm, the default), AMDM (TASK=amdm) or object-centric
 # (TASK=trajectory | completion) training run on a lent
-# GPU machine (see docs/results.md, "Fine-tuning the ADM on a GPU"). Idempotent: call it again
+# GPU machine (see docs/results.md in the git history, "Fine-tuning the ADM on a GPU"). Idempotent: call it again
 # and again (each call at most 10 minutes) while the machine stays warm; each call does what is
 # left:
 #   1. install the staged wheels (scripts/device/prepare.sh) into /tmp/site;
@@ -25,12 +25,12 @@
 # joint_velocity_weight=2", SCENES=2000 SPLIT=2000 to build in under 2 minutes;
 # add TRAIN_ARGS="model.traj_sensor=true sensor_points=2048" and drop init_from for a completion
 # model with the trajectory sensor, or preset=paper for the paper's size, from scratch).
-# The shipped completion model reads the trajectory's velocity (docs/results.md, "The
+# The shipped completion model reads the trajectory's velocity (docs/results.md in the git history, "The
 # completion model told the trajectory's velocity"): TRAIN_ARGS="joint_weight=200
 # foot_contact_weight=3 joint_velocity_weight=2 model.traj_velocity=true
 # geometric_weighting=uniform" continues it.
 # TASK=amdm trains the AMDM on the shipped ADM's maps (half the batches) with the temporal basis
-# of the plausibility issue (model.temporal_basis=24: docs/results.md, "A band-limited AMDM"),
+# of the plausibility issue (model.temporal_basis=24: docs/results.md in the git history, "A band-limited AMDM"),
 # from scratch; add
 # TRAIN_ARGS="init_from=$PWD/jaxmotion/assets/amdm.safetensors" to fine-tune the shipped one.
 set -u

@@ -1,3 +1,3 @@
 #!/bin/bash
-# The ADM run of scripts/device/train.sh (kept under this name for the commands in docs/results.md).
+# The ADM run of scripts/device/train.sh (kept under this name for the commands in docs/training.md).
 TASK=adm exec bash "$(dirname "$0")/train.sh" "$@"

@@ -222,12 +222,33 @@ def generate_batch(cases, out, *, options=None, video: str | None = None,
     runner.run(left)
     rows = [_read_row(out, c) for c in mine]
     if ranks > 1:  # every process done before the summary is gathered
-        from jax.experimental import multihost_utils
-
-        multihost_utils.sync_global_devices("jaxmotion-generate-batch")
+        wait_for_every_process("jaxmotion-generate-batch")
     if rank == 0:
         _write_summary(out, todo)
     return rows
+
+
+#: How long a process waits for the others at the end of a batch (their shares of the
+#: requests can take hours longer than its own).
+WAIT_HOURS = 72
+
+
+def wait_for_every_process(name: str) -> None:
+    """Block until every process of the ``jax.distributed`` run got here (the coordination
+    service's barrier, waiting up to :data:`WAIT_HOURS`).
+
+    Not a collective over the devices (``multihost_utils.sync_global_devices``): on CPU that
+    sets up a Gloo context, which gives up when the processes arrive more than 30 s apart,
+    and a process whose requests were quicker arrives minutes or hours early."""
+    from jax._src import distributed  # the client jax.distributed.initialize made
+
+    client = distributed.global_state.client
+    if client is None:  # the run was not started by jax.distributed.initialize
+        from jax.experimental import multihost_utils
+
+        multihost_utils.sync_global_devices(name)
+        return
+    client.wait_at_barrier(name, WAIT_HOURS * 3600 * 1000)
 
 
 def _read_row(out: Path, case: BatchCase) -> dict:

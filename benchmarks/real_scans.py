@@ -17,7 +17,8 @@ the geometric judge (:func:`jaxmotion.eval.action_judge.judge_on_object`: seated
 standing near the target at the end), the share of frames with a joint inside another object's
 box (:func:`jaxmotion.eval.furniture.furniture_frames`, the protocol's furniture metric; a sit's
 or lie's own target aside), the stricter share of frames with a joint within 4 cm of another
-object's points (doors, windows, pictures, curtains, rugs and structure aside), the lowest
+object's points (:func:`jaxmotion.eval.furniture.contact_frames`: doors, windows, pictures,
+curtains, rugs, floor mats and structure aside), the lowest
 foot. Printed per motion and in total; ``--json`` keeps the rows.
 """
 
@@ -44,17 +45,14 @@ FEET = [7, 8, 10, 11]
 
 
 def near_share(joints, scene, target, radius=0.04) -> float:
-    """Share of frames with a joint within ``radius`` of another object's points."""
-    from scipy.spatial import cKDTree
+    """Share of frames with a joint within ``radius`` of another object's points
+    (:func:`jaxmotion.eval.furniture.contact_frames`; floor mats are walked on)."""
+    from jaxmotion.eval.furniture import contact_frames
 
-    other = np.zeros(scene.num_points, bool)
-    for o in scene.objects:
-        if o["id"] != target and o["category"] not in PASS:
-            other |= scene.instance == o["id"]
-    if not other.any():
-        return 0.0
-    d, _ = cKDTree(scene.xyz[other]).query(joints.reshape(-1, 3))
-    return float((d.reshape(len(joints), -1) < radius).any(1).mean())
+    objects = [o for o in scene.objects if o["category"] not in PASS]
+    return float(contact_frames(joints[None], scene.xyz, scene.instance, objects,
+                                exclude=() if target is None else (target,),
+                                radius=radius)[0])
 
 
 def strip(path: Path, tmp: Path) -> Path:

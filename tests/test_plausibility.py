@@ -314,6 +314,37 @@ def test_furniture_frames_counts_frames_with_a_joint_inside_a_box():
         furniture_frames(joints[0], [table])
 
 
+def test_contact_frames_matches_brute_force_distances():
+    """Frames with a joint within 4 cm of another object's points, against a loop over every
+    joint and point; the target, passable objects and structure excluded; masks and leading
+    axes as furniture_frames."""
+    from jaxmotion.eval.furniture import contact_frames
+
+    rng = np.random.default_rng(0)
+    xyz = rng.uniform([0, 0, 0], [3, 3, 1], (400, 3))
+    instance = rng.integers(0, 4, 400)
+    objects = [{"id": 0, "category": "floor"}, {"id": 1, "category": "chair"},
+               {"id": 2, "category": "table"}, {"id": 3, "category": "door"}]
+    joints = rng.uniform([0, 0, 0], [3, 3, 1], (2, 30, 22, 3))
+
+    def brute(j, exclude):
+        keep = np.isin(instance, [1, 2]) & ~np.isin(instance, exclude)
+        d = np.linalg.norm(j[..., None, :] - xyz[keep], axis=-1).min(-1)
+        return (d < 0.04).any(-1).mean(-1)
+
+    got = contact_frames(joints, xyz, instance, objects)
+    np.testing.assert_allclose(got, brute(joints, []))
+    assert 0.05 < got.min() and got.max() < 0.95  # the check sees both kinds of frame
+    np.testing.assert_allclose(contact_frames(joints, xyz, instance, objects, exclude=[2]),
+                               brute(joints, [2]))
+    mask = np.arange(30) < 10
+    np.testing.assert_allclose(contact_frames(joints, xyz, instance, objects, mask=mask),
+                               brute(joints[:, :10], []))
+    assert contact_frames(joints[0], xyz, instance, objects, exclude=[1, 2]) == 0.0
+    with pytest.raises(ValueError, match="one instance id per point"):
+        contact_frames(joints, xyz, instance[:-1], objects)
+
+
 def _foot_faults_reference(joints, mask, fps=30.0, h=0.05, v=0.5, sink=0.03):
     """Frame-pair loop of :func:`jaxmotion.eval.skating.foot_faults`."""
     from jaxmotion.eval.skating import FOOT_FLOOR_OFFSETS, FOOT_JOINTS

@@ -9,6 +9,11 @@ table top, between its legs). Here each object is its axis-aligned box (the obje
 joint brushing a surface does not count. Objects a body may pass (doors, windows, pictures,
 curtains, rugs: :data:`jaxmotion.constants.PASSABLE`) and floors, walls and ceilings are left
 out, and so are the ids in ``exclude`` (the seat a sit ends on). Host-side numpy.
+
+A real scan's boxes are loose (an L-shaped sofa's box holds the table it wraps, a segment
+spanning the room holds everything): :func:`contact_frames` reads the objects' own points
+instead, a frame counting when a joint is within a few centimetres of another object's
+surface (against it, or passing through it).
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ import numpy as np
 
 from jaxmotion.constants import PASSABLE, STRUCTURE
 
-__all__ = ["IGNORED", "furniture_frames"]
+__all__ = ["IGNORED", "contact_frames", "furniture_frames"]
 
 #: Categories never counted: passable objects and the room's own surfaces.
 IGNORED = (*PASSABLE, *STRUCTURE)
@@ -53,3 +58,44 @@ def furniture_frames(joints, objects, exclude=(), mask=None, margin: float = 0.0
         inside |= np.all((joints > lo) & (joints < hi), axis=-1).any(-1)
     n = mask.sum(-1)
     return np.where(n > 0, (inside & mask).sum(-1) / np.maximum(n, 1), 0.0)
+
+
+def contact_frames(joints, xyz, instance, objects, exclude=(), mask=None,
+                   radius: float = 0.04) -> np.ndarray:
+    """The share of valid frames in which a joint is within ``radius`` of the points of an
+    object other than those in ``exclude`` (passable objects and structure left out, as in
+    :func:`furniture_frames`).
+
+    Args:
+      joints: ``[..., T, J, 3]`` in the room's frame (metres, z-up).
+      xyz: ``[N, 3]`` the room's points; instance: ``[N]`` their object ids.
+      objects: the room's object table (dicts with ``id`` and ``category``).
+      exclude: object ids not counted (the target of a sit or lie; a walk's target too when
+        touching it is fine).
+      mask: ``[..., T]`` bool, True = valid frame (default all).
+      radius: metres from a point within which a joint counts as against the object.
+    Returns:
+      ``[...]`` fractions in [0, 1] (0 for a motion with no valid frame, or a room with no
+      counted point).
+    """
+    from scipy.spatial import cKDTree
+
+    joints = np.asarray(joints, np.float64)
+    if joints.ndim < 3 or joints.shape[-1] != 3:
+        raise ValueError(f"joints must be [..., T, J, 3], got {joints.shape}")
+    xyz, instance = np.asarray(xyz, np.float64), np.asarray(instance)
+    if xyz.shape != (len(instance), 3):
+        raise ValueError(f"xyz must be [N, 3] with one instance id per point, got {xyz.shape} "
+                         f"and {instance.shape}")
+    mask = (np.ones(joints.shape[:-2], bool) if mask is None
+            else np.broadcast_to(np.asarray(mask, bool), joints.shape[:-2]))
+    skip = {int(i) for i in exclude}
+    counted = [int(o["id"]) for o in objects
+               if int(o["id"]) not in skip and o["category"] not in IGNORED]
+    near = np.zeros(joints.shape[:-2], bool)
+    pts = xyz[np.isin(instance, counted)]
+    if len(pts):
+        d, _ = cKDTree(pts).query(joints.reshape(-1, 3), distance_upper_bound=radius)
+        near = (d.reshape(joints.shape[:-1]) < radius).any(-1)
+    n = mask.sum(-1)
+    return np.where(n > 0, (near & mask).sum(-1) / np.maximum(n, 1), 0.0)

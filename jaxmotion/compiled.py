@@ -239,10 +239,11 @@ def _load_program(path: Path | None, build, specs):
 
 
 def compiler_options() -> dict:
-    """XLA options the kept programs compile with. On CPU, LLVM's ``-O1``: the samplers then
-    compile in about a fifth less time (a first run's wait; ``benchmarks/generate.py``) and
-    run as fast (measured on both stages: within 3 %). ``XLA_FLAGS`` that name the level
-    keep theirs."""
+    """XLA options the kept programs compile with. On CPU, LLVM's ``-O1``: the two sampler
+    programs of a first ``generate`` then compile in about a fifth less time (compiles timed
+    in process on a fresh cache; the end-to-end ``benchmarks/generate.py`` cold figure is
+    too noisy to show it) and run as fast (both stages: within 3 %). ``XLA_FLAGS`` that
+    name the level keep theirs."""
     import os
 
     import jax

@@ -41,23 +41,15 @@ def furniture_frames(joints, objects, exclude=(), mask=None, margin: float = 0.0
     Returns:
       ``[...]`` fractions in [0, 1] (0 for a motion with no valid frame).
     """
-    joints = np.asarray(joints, np.float64)
-    if joints.ndim < 3 or joints.shape[-1] != 3:
-        raise ValueError(f"joints must be [..., T, J, 3], got {joints.shape}")
-    mask = (np.ones(joints.shape[:-2], bool) if mask is None
-            else np.broadcast_to(np.asarray(mask, bool), joints.shape[:-2]))
-    skip = {int(i) for i in exclude}
+    joints, mask = _joints_and_mask(joints, mask)
     inside = np.zeros(joints.shape[:-2], bool)
-    for o in objects:
-        if int(o["id"]) in skip or o["category"] in IGNORED:
-            continue
+    for o in _counted(objects, exclude):
         lo = np.asarray(o["bbox_min"], np.float64) + margin
         hi = np.asarray(o["bbox_max"], np.float64) - margin
         if np.any(lo >= hi):  # thinner than twice the margin: nothing inside counts
             continue
         inside |= np.all((joints > lo) & (joints < hi), axis=-1).any(-1)
-    n = mask.sum(-1)
-    return np.where(n > 0, (inside & mask).sum(-1) / np.maximum(n, 1), 0.0)
+    return _share(inside, mask)
 
 
 def contact_frames(joints, xyz, instance, objects, exclude=(), mask=None,
@@ -80,22 +72,36 @@ def contact_frames(joints, xyz, instance, objects, exclude=(), mask=None,
     """
     from scipy.spatial import cKDTree
 
-    joints = np.asarray(joints, np.float64)
-    if joints.ndim < 3 or joints.shape[-1] != 3:
-        raise ValueError(f"joints must be [..., T, J, 3], got {joints.shape}")
+    joints, mask = _joints_and_mask(joints, mask)
     xyz, instance = np.asarray(xyz, np.float64), np.asarray(instance)
     if xyz.shape != (len(instance), 3):
         raise ValueError(f"xyz must be [N, 3] with one instance id per point, got {xyz.shape} "
                          f"and {instance.shape}")
-    mask = (np.ones(joints.shape[:-2], bool) if mask is None
-            else np.broadcast_to(np.asarray(mask, bool), joints.shape[:-2]))
-    skip = {int(i) for i in exclude}
-    counted = [int(o["id"]) for o in objects
-               if int(o["id"]) not in skip and o["category"] not in IGNORED]
     near = np.zeros(joints.shape[:-2], bool)
-    pts = xyz[np.isin(instance, counted)]
+    pts = xyz[np.isin(instance, [int(o["id"]) for o in _counted(objects, exclude)])]
     if len(pts):
         d, _ = cKDTree(pts).query(joints.reshape(-1, 3), distance_upper_bound=radius)
         near = (d.reshape(joints.shape[:-1]) < radius).any(-1)
+    return _share(near, mask)
+
+
+def _joints_and_mask(joints, mask):
+    """``joints`` as float64 ``[..., T, J, 3]`` (checked) and ``mask`` as bool ``[..., T]``."""
+    joints = np.asarray(joints, np.float64)
+    if joints.ndim < 3 or joints.shape[-1] != 3:
+        raise ValueError(f"joints must be [..., T, J, 3], got {joints.shape}")
+    mask = (np.ones(joints.shape[:-2], bool) if mask is None
+            else np.broadcast_to(np.asarray(mask, bool), joints.shape[:-2]))
+    return joints, mask
+
+
+def _counted(objects, exclude):
+    """The objects a body must keep out of: not in ``exclude``, not passable, not structure."""
+    skip = {int(i) for i in exclude}
+    return [o for o in objects if int(o["id"]) not in skip and o["category"] not in IGNORED]
+
+
+def _share(hit, mask):
+    """The share of the valid frames that ``hit`` ``[..., T]`` (0 where none is valid)."""
     n = mask.sum(-1)
-    return np.where(n > 0, (near & mask).sum(-1) / np.maximum(n, 1), 0.0)
+    return np.where(n > 0, (hit & mask).sum(-1) / np.maximum(n, 1), 0.0)

@@ -510,6 +510,25 @@ def test_frechet_distance_uses_sqrtm_like_the_reference():
     np.testing.assert_allclose(M.frechet_distance([0, 0], s1, [1, 0], s2), ref)
 
 
+
+def test_fid_of_fewer_samples_than_dimensions_is_finite_and_warns_nothing():
+    """Two samples of 8-dimensional features: both covariances are singular (scipy's sqrtm
+    warns the root may be inaccurate); the offset retry gives the distance of the eps-regular
+    covariances, checked against the symmetric square-root form."""
+    import warnings
+
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=(2, 8)), rng.normal(size=(2, 8)) + 0.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        d = M.fid(a, b)
+    s1, s2 = (np.cov(x, rowvar=False) + 1e-6 * np.eye(8) for x in (a, b))
+    w, v = np.linalg.eigh(s1)
+    r1 = (v * np.sqrt(np.clip(w, 0, None))) @ v.T
+    tr = np.sqrt(np.clip(np.linalg.eigvalsh(r1 @ s2 @ r1), 0, None)).sum()
+    diff = a.mean(0) - b.mean(0)
+    np.testing.assert_allclose(d, diff @ diff + np.trace(s1) + np.trace(s2) - 2 * tr, rtol=1e-4)
+
 def test_package_exports():
     import jaxmotion.eval as E
 

@@ -19,6 +19,8 @@ explicit :class:`numpy.random.Generator` (or an int seed).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 __all__ = [
@@ -60,7 +62,8 @@ def frechet_distance(mu1, sigma1, mu2, sigma2, eps: float = 1e-6) -> float:
     """Fréchet distance between ``N(μ1, Σ1)`` and ``N(μ2, Σ2)``.
 
     ``d² = |μ1 − μ2|² + tr(Σ1) + tr(Σ2) − 2 tr((Σ1 Σ2)^{1/2})``. As in the
-    reference code, a non-finite square root is retried with ``eps·I`` added to
+    reference code, a non-finite square root (or one scipy calls inaccurate: the product of
+    singular covariances, fewer samples than dimensions) is retried with ``eps·I`` added to
     both covariances, and a complex result with negligible imaginary part is
     made real (``ValueError`` otherwise).
     """
@@ -71,10 +74,17 @@ def frechet_distance(mu1, sigma1, mu2, sigma2, eps: float = 1e-6) -> float:
     from scipy import linalg  # here: the import costs every generate ~0.1 s
 
     diff = mu1 - mu2
-    covmean = linalg.sqrtm(s1 @ s2)
-    if not np.isfinite(covmean).all():
+    with warnings.catch_warnings(record=True) as caught:
+        # a covariance of fewer samples than dimensions is singular: scipy warns that its
+        # square root may be inaccurate; then retry with the offset, as for a non-finite one
+        warnings.simplefilter("always", linalg.LinAlgWarning)
+        covmean = linalg.sqrtm(s1 @ s2)
+    if not np.isfinite(covmean).all() or any(issubclass(w.category, linalg.LinAlgWarning)
+                                             for w in caught):
         offset = np.eye(s1.shape[0]) * eps
-        covmean = linalg.sqrtm((s1 + offset) @ (s2 + offset))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", linalg.LinAlgWarning)
+            covmean = linalg.sqrtm((s1 + offset) @ (s2 + offset))
     if np.iscomplexobj(covmean):
         if not np.allclose(np.diagonal(covmean).imag, 0, atol=1e-3):
             raise ValueError(f"imaginary component {np.max(np.abs(covmean.imag))} in sqrtm")

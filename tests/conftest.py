@@ -21,9 +21,25 @@ else:
     _cache = tempfile.mkdtemp(prefix="jaxmotion-test-cache-")
     atexit.register(shutil.rmtree, _cache, ignore_errors=True)
     os.environ["JAXMOTION_CACHE"] = _cache
-# and never through XLA's persistent executable cache: its CPU runtime has aborted / segfaulted
-# deserialising a large executable (the samplers' scan) written earlier in the same process
-os.environ.setdefault("JAXMOTION_XLA_CACHE", "off")
+# XLA's persistent executable cache is on, in one folder of the run that every xdist worker
+# shares (made by the controller, which starts the workers with it in their environment): a
+# program compiled once in the run (by either worker, or before a test drops its programs to
+# load them "as a new process") is read back instead of compiled again.
+# JAXMOTION_XLA_CACHE=off runs the suite without it.
+if os.environ.get("JAXMOTION_XLA_CACHE", "").strip().lower() not in ("off", "0", "none", "false"):
+    from jaxmotion._jax_setup import enable_compilation_cache  # noqa: E402
+
+    if not os.environ.get("JAXMOTION_TEST_XLA"):
+        if os.environ.get("JAXMOTION_TEST_CACHE"):
+            os.environ["JAXMOTION_TEST_XLA"] = os.environ["JAXMOTION_TEST_CACHE"]
+        else:
+            import atexit  # noqa: E402
+            import shutil  # noqa: E402
+            import tempfile  # noqa: E402
+
+            os.environ["JAXMOTION_TEST_XLA"] = tempfile.mkdtemp(prefix="jaxmotion-test-xla-")
+            atexit.register(shutil.rmtree, os.environ["JAXMOTION_TEST_XLA"], ignore_errors=True)
+    enable_compilation_cache(os.environ["JAXMOTION_TEST_XLA"])
 
 from hypothesis import HealthCheck, settings  # noqa: E402
 

@@ -14,7 +14,7 @@ def test_host_key_is_stable_and_short():
 
 def test_executables_are_kept_per_host(tmp_path, monkeypatch):
     monkeypatch.setenv("JAXMOTION_CACHE", str(tmp_path / "c"))
-    monkeypatch.setenv("JAXMOTION_XLA_CACHE", "off")  # XLA's cache stays off in the suite
+    monkeypatch.setenv("JAXMOTION_XLA_CACHE", "off")  # the suite's XLA cache left as it is
     root = S.enable_compilation_cache()
     assert root == tmp_path / "c"
     assert (root / f"executables-{S.host_key()}").is_dir()

@@ -368,3 +368,32 @@ def test_a_doubtful_seat_name_without_a_seat_is_an_object():
 
     assert names(0.45) == [(0.4, "sofa"), (1.0, "object")]
     assert names(0.9) == [(0.4, "sofa"), (1.0, "sofa")]
+
+
+def test_a_bed_is_something_to_lie_on_with_little_above_its_top():
+    """A sure "bed" stays a bed on a surface with little above it (also one a degraded scan
+    leaves too holed to lie on); with a backrest (a fifth of its points or more well above
+    the surface) it is a sofa; with no surface at all an "object". Doubtful seat names need
+    a surface; other names are kept."""
+    name = seg.name_by_surfaces
+    bed = {"surface_height": 0.5, "affords": ["sit", "lie"], "above_share": 0.09}
+    assert name("bed", 0.9, bed) == "bed"
+    assert name("bed", 0.9, {**bed, "affords": ["sit"]}) == "bed"
+    assert name("bed", 0.9, {**bed, "above_share": 0.56}) == "sofa"  # an L-sofa's back
+    assert name("bed", 0.9, {**bed, "above_share": 0.22}) == "sofa"  # a synthetic sofa's
+    assert name("bed", 0.99, {}) == "object"  # a cabinet's name
+    assert name("sofa", 0.4, {}) == "object" and name("sofa", 0.9, {}) == "sofa"
+    assert name("chair", 0.4, {**bed, "affords": ["sit"]}) == "chair"
+    assert name("table", 0.3, {}) == "table"  # not a seat: the confidence rule is elsewhere
+
+
+def test_the_ring_of_an_l_sofa_s_back_is_no_surface_to_lie_on():
+    """The tops of an L-shaped back and arms at 0.72 m (a layer 2.6 m x 2.2 m across, but a
+    thin ring): no place to lie there; the same extent filled (a mattress) is."""
+    rng = np.random.default_rng(6)
+    up = lambda p: np.broadcast_to([0.0, 0.0, 1.0], p.shape).copy()  # noqa: E731
+    ring = np.concatenate([_box([0, 0, 0.72], [2.6, 0.25, 0.72], 600, rng, top_only=True),
+                           _box([0, 0, 0.72], [0.25, 2.2, 0.72], 600, rng, top_only=True)])
+    assert "lie" not in seg.support_surfaces(ring, up(ring)).get("affords", [])
+    full = _box([0, 0, 0.72], [2.6, 2.2, 0.72], 3000, rng, top_only=True)
+    assert seg.support_surfaces(full, up(full))["affords"] == ["lie"]

@@ -17,8 +17,10 @@ mattress, a stool's top, not a backrest's face, a seat's underside or the floor 
 A target with no such point uses the points with ``|n_z| ≥`` :data:`UP_NORMAL` (normals of the
 wrong sign), then all its points in the band (no normals). Of those, the ones within
 :data:`LAYER_HALF_THICKNESS` of the height that holds most of them: the seat or the mattress,
-not the top of a backrest, an armrest or a headboard. A target with no point in the band uses
-all its points.
+not the top of a backrest, an armrest or a headboard; where that layer is higher than any
+seat (:data:`SEAT_HEIGHTS`) and a seat-height layer holds at least :data:`SEAT_LAYER_SHARE`
+as many points, that one (a real L-shaped sofa's back and arm tops outnumber its seat). A
+target with no point in the band uses all its points.
 
 Where the pelvis goes. If the anchor pelvis is already within :data:`ON_SURFACE` (xy) of a
 surface point, nowhere: the model's choice of spot is kept. Otherwise to the nearest surface
@@ -101,6 +103,9 @@ SURFACE_BAND = (0.2, 1.0)
 # upward-facing points are, found on a grid of _LAYER_BIN; a cushion's slope or a sagging
 # mattress stays inside it.
 LAYER_HALF_THICKNESS = 0.06
+# A layer above SEAT_HEIGHTS (m) gives way to a seat-height one holding at least this share of
+# its points (the back and arm tops of a real sofa can outnumber its seat's points).
+SEAT_HEIGHTS, SEAT_LAYER_SHARE = (0.33, 0.68), 0.5
 _LAYER_BIN = 0.02
 ON_SURFACE = 0.05  # m (xy): a pelvis this close to a surface point is over the surface
 # Pelvis joint over the surface it rests on, m: seated 0.16-0.20, lying 0.09-0.13 in the
@@ -209,7 +214,13 @@ def support_surface(points, normals, target_mask) -> jnp.ndarray:
     # armrest or a headboard (a few points each)
     edges = jnp.arange(SURFACE_BAND[0], SURFACE_BAND[1] + _LAYER_BIN, _LAYER_BIN)
     counts = jnp.sum(cand[:, None] & (jnp.abs(z[:, None] - edges[None]) <= _LAYER_BIN), axis=0)
-    peak = edges[jnp.argmax(counts)]
+    top = jnp.argmax(counts)
+    # ... unless that layer is above any seat and a seat-height layer holds at least
+    # SEAT_LAYER_SHARE as many: the tops of an L-shaped sofa's back and arms outnumber its seat
+    seat = ((edges >= SEAT_HEIGHTS[0]) & (edges <= SEAT_HEIGHTS[1])
+            & (counts >= SEAT_LAYER_SHARE * counts[top]))
+    lower = jnp.argmax(jnp.where(seat, counts, -1))
+    peak = edges[jnp.where((edges[top] > SEAT_HEIGHTS[1]) & jnp.any(seat), lower, top)]
     layer = jnp.nanmedian(jnp.where(cand & (jnp.abs(z - peak) <= _LAYER_BIN), z, jnp.nan))
     in_layer = cand & (jnp.abs(z - layer) <= LAYER_HALF_THICKNESS)
     return jnp.where(jnp.any(in_layer), in_layer, target_mask)

@@ -8,38 +8,34 @@ import os
 os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false "
                       "--xla_backend_optimization_level=1")
 
+
+def _run_folder(prefix: str) -> str:
+    """A temporary folder removed when this process exits."""
+    import atexit
+    import shutil
+    import tempfile
+
+    folder = tempfile.mkdtemp(prefix=prefix)
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    return folder
+
+
 # The suite never reads compiled programs it did not write itself: jaxmotion's cache (and XLA's
-# persistent one, which a process opens once) go to a folder of this run, unless
+# persistent one, which a process opens once) go to folders of this run, unless
 # JAXMOTION_TEST_CACHE names one to keep between local runs.
-if os.environ.get("JAXMOTION_TEST_CACHE"):
-    os.environ["JAXMOTION_CACHE"] = os.environ["JAXMOTION_TEST_CACHE"]
-else:
-    import atexit  # noqa: E402
-    import shutil  # noqa: E402
-    import tempfile  # noqa: E402
+os.environ["JAXMOTION_CACHE"] = (os.environ.get("JAXMOTION_TEST_CACHE")
+                                 or _run_folder("jaxmotion-test-cache-"))
+# XLA's executables go to one folder that every xdist worker shares (made by the controller,
+# which starts the workers with it in their environment): a program compiled once in the run
+# (by either worker, or before a test drops its programs to load them "as a new process") is
+# read back instead of compiled again. JAXMOTION_XLA_CACHE=off runs the suite without it
+# (enable_compilation_cache reads that switch).
+if not os.environ.get("JAXMOTION_TEST_XLA"):
+    os.environ["JAXMOTION_TEST_XLA"] = (os.environ.get("JAXMOTION_TEST_CACHE")
+                                        or _run_folder("jaxmotion-test-xla-"))
+from jaxmotion._jax_setup import enable_compilation_cache  # noqa: E402
 
-    _cache = tempfile.mkdtemp(prefix="jaxmotion-test-cache-")
-    atexit.register(shutil.rmtree, _cache, ignore_errors=True)
-    os.environ["JAXMOTION_CACHE"] = _cache
-# XLA's persistent executable cache is on, in one folder of the run that every xdist worker
-# shares (made by the controller, which starts the workers with it in their environment): a
-# program compiled once in the run (by either worker, or before a test drops its programs to
-# load them "as a new process") is read back instead of compiled again.
-# JAXMOTION_XLA_CACHE=off runs the suite without it.
-if os.environ.get("JAXMOTION_XLA_CACHE", "").strip().lower() not in ("off", "0", "none", "false"):
-    from jaxmotion._jax_setup import enable_compilation_cache  # noqa: E402
-
-    if not os.environ.get("JAXMOTION_TEST_XLA"):
-        if os.environ.get("JAXMOTION_TEST_CACHE"):
-            os.environ["JAXMOTION_TEST_XLA"] = os.environ["JAXMOTION_TEST_CACHE"]
-        else:
-            import atexit  # noqa: E402
-            import shutil  # noqa: E402
-            import tempfile  # noqa: E402
-
-            os.environ["JAXMOTION_TEST_XLA"] = tempfile.mkdtemp(prefix="jaxmotion-test-xla-")
-            atexit.register(shutil.rmtree, os.environ["JAXMOTION_TEST_XLA"], ignore_errors=True)
-    enable_compilation_cache(os.environ["JAXMOTION_TEST_XLA"])
+enable_compilation_cache(os.environ["JAXMOTION_TEST_XLA"])
 
 from hypothesis import HealthCheck, settings  # noqa: E402
 

@@ -26,7 +26,6 @@ def _chair(seat_z=0.45, x0=1.0, y0=1.0, size=0.5, step=0.02):
     return pts, nrm, len(seat)
 
 
-
 def test_support_surface_of_an_l_sofa_is_its_seat_and_a_high_bed_keeps_its_mattress():
     """A real L-shaped sofa: its seat (0.42 m) holds fewer up-facing points than the tops of
     its back and arms (0.72 m), but more than half as many: the seat is the surface. A bed
@@ -46,9 +45,11 @@ def test_support_surface_of_an_l_sofa_is_its_seat_and_a_high_bed_keeps_its_mattr
     mattress = np.c_[rng.uniform(0, 2, (800, 2)), rng.normal(0.72, 0.01, 800)]
     rail = np.c_[rng.uniform(0, 2, (60, 1)), np.zeros((60, 1)), rng.normal(0.35, 0.01, 60)]
     bed = np.r_[mattress, rail].astype(np.float32)
-    s = np.asarray(A.support_surface(jnp.asarray(bed), jnp.asarray(up[:len(bed)]),
+    bed_up = np.tile([0, 0, 1.0], (len(bed), 1)).astype(np.float32)
+    s = np.asarray(A.support_surface(jnp.asarray(bed), jnp.asarray(bed_up),
                                      jnp.ones(len(bed), bool)))
     assert s[:800].all() and not s[800:].any()
+
 
 def _brute_gap(xy, pts, surface):
     return np.min(np.linalg.norm(pts[surface][:, :2] - xy, axis=-1))

@@ -22,6 +22,11 @@ def _box(lo, hi, n, rng, top_only=False):
     return pts
 
 
+def _up(pts):
+    """Normals pointing straight up, one per point of ``pts [N, 3]``."""
+    return np.broadcast_to([0.0, 0.0, 1.0], pts.shape).copy()
+
+
 def test_components_match_a_brute_force_flood_fill():
     from scipy.ndimage import label
 
@@ -57,14 +62,13 @@ def test_touching_objects_are_split_and_one_object_is_not():
 
 def test_support_surfaces_find_seats_and_beds():
     rng = np.random.default_rng(2)
-    up = lambda p: np.broadcast_to([0.0, 0.0, 1.0], p.shape).copy()  # noqa: E731
     seat = _box([0, 0, 0.45], [0.45, 0.45, 0.45], 400, rng, top_only=True)
-    got = seg.support_surfaces(seat, up(seat))
+    got = seg.support_surfaces(seat, _up(seat))
     assert got["affords"] == ["sit"] and abs(got["surface_height"] - 0.45) <= 0.02
     bed = _box([0, 0, 0.5], [2.0, 1.4, 0.5], 2000, rng, top_only=True)
-    assert seg.support_surfaces(bed, up(bed))["affords"] == ["sit", "lie"]
+    assert seg.support_surfaces(bed, _up(bed))["affords"] == ["sit", "lie"]
     table = _box([0, 0, 0.75], [1.0, 1.0, 0.75], 800, rng, top_only=True)
-    assert seg.support_surfaces(table, up(table)) == {}
+    assert seg.support_surfaces(table, _up(table)) == {}
 
 
 @pytest.fixture(scope="module")
@@ -391,9 +395,8 @@ def test_the_ring_of_an_l_sofa_s_back_is_no_surface_to_lie_on():
     """The tops of an L-shaped back and arms at 0.72 m (a layer 2.6 m x 2.2 m across, but a
     thin ring): no place to lie there; the same extent filled (a mattress) is."""
     rng = np.random.default_rng(6)
-    up = lambda p: np.broadcast_to([0.0, 0.0, 1.0], p.shape).copy()  # noqa: E731
     ring = np.concatenate([_box([0, 0, 0.72], [2.6, 0.25, 0.72], 600, rng, top_only=True),
                            _box([0, 0, 0.72], [0.25, 2.2, 0.72], 600, rng, top_only=True)])
-    assert "lie" not in seg.support_surfaces(ring, up(ring)).get("affords", [])
+    assert "lie" not in seg.support_surfaces(ring, _up(ring)).get("affords", [])
     full = _box([0, 0, 0.72], [2.6, 2.2, 0.72], 3000, rng, top_only=True)
-    assert seg.support_surfaces(full, up(full))["affords"] == ["lie"]
+    assert seg.support_surfaces(full, _up(full))["affords"] == ["lie"]
